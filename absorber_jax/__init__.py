@@ -1,0 +1,38 @@
+"""absorber_jax: differentiable simulation, sweeps and design of impact and friction
+vibration absorbers.
+
+Importing the package enables JAX's float64 mode (``jax_enable_x64``): the default path of
+every computation here is double precision.
+"""
+
+import jax as _jax
+
+_jax.config.update("jax_enable_x64", True)
+
+from . import presets  # noqa: E402
+from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
+from ._forcing import AbstractForcing, Harmonic, RampedHarmonic  # noqa: E402
+from ._friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
+from ._helpers import (  # noqa: E402
+    effective_mass,
+    equivalent_hertz_stiffness,
+    hertz_contact_time,
+    hertz_stiffness,
+    hunt_crossley_damping,
+    linear_contact_time,
+    linear_restitution,
+)
+from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
+from ._status import Status, describe  # noqa: E402
+from ._system import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "AbstractAbsorberSystem", "AbstractContactLaw", "AbstractForcing", "AbstractFrictionLaw",
+    "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
+    "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
+    "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
+    "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
+    "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",
+]

@@ -1,0 +1,291 @@
+r"""Friction laws of the friction absorber, paper section 3 (equations corrected in
+DESIGN.md §1.2).
+
+A law gives the friction force ``Fnl`` [N] that drags the absorber along with the primary,
+as a function of the relative sliding velocity ``v = Ẋ = ẋ1 - ẋ2`` [m/s], the normal force
+``N`` [N] (a field of the system, so it can be tuned) and, for Dahl and LuGre only, the
+bristle deflection ``z`` [m] carried as an extra state.  ``eps`` [m/s] smooths ``sign(v)``
+as ``tanh(v/eps)`` and ``|v|`` as ``v·tanh(v/eps)``.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ._checks import as_float, check_scalar, nonnegative, positive
+from ._smooth import smooth_abs, smooth_sign
+
+
+class AbstractFrictionLaw(eqx.Module):
+    """Base class of the friction laws.
+
+    ``num_states`` is the number of internal states the law adds to the system's state
+    (0 for Coulomb and Stribeck, 1 for Dahl and LuGre).
+    """
+
+    num_states: ClassVar[int] = 0
+
+    @abc.abstractmethod
+    def force(self, v, z, normal_force):
+        """Friction force [N] at sliding velocity ``v`` and internal state ``z``
+        (an array of shape ``(num_states,)``)."""
+
+    def state_rate(self, v, z, normal_force):
+        """Time derivative of the internal state (empty for memoryless laws)."""
+        return jnp.zeros((0,), dtype=jnp.result_type(v))
+
+    def stored_energy(self, z):
+        """Elastic energy [J] held in the internal state (zero for memoryless laws)."""
+        return jnp.zeros((), dtype=jnp.result_type(float))
+
+    def dissipated_power(self, v, z, normal_force):
+        """Power [W] the law dissipates: ``Fnl·v - d/dt stored_energy``."""
+        return self.force(v, z, normal_force) * v
+
+    @abc.abstractmethod
+    def steady_force(self, v, normal_force):
+        """Friction force [N] in steady sliding at constant velocity ``v`` (the law's
+        friction curve, paper Figs. 9, 10, 15, 16)."""
+
+    @abc.abstractmethod
+    def is_sliding(self, v, z, normal_force):
+        """Boolean: the contact is in gross sliding (not stuck / pre-sliding)."""
+
+    @abc.abstractmethod
+    def stiffness_rate(self, normal_force, meff):
+        """A rough largest rate [1/s] the law adds to the dynamics (solver choice)."""
+
+    def initial_state(self):
+        return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
+
+
+class Coulomb(AbstractFrictionLaw):
+    r"""Coulomb kinetic friction, paper section 3.2, Fig. 9:
+
+    $$F_{nl} = \mu N\,\mathrm{sign}(\dot X) \approx \mu N \tanh(\dot X/\varepsilon).$$
+
+    **Arguments**
+
+    - ``mu``: friction coefficient $\mu_c$ [-] (Table 4: 0.5).
+    - ``eps``: velocity smoothing [m/s]. The smoothed law converges like ``eps`` to the
+      event-exact stick–slip solution; small ``eps`` makes the scene stiff.
+
+    ```python
+    law = Coulomb(mu=0.5)
+    law.force(1.0, None, 10.0)   # 0.5 * 10 = 5 N (sliding forwards)
+    ```
+    """
+
+    mu: object = eqx.field(converter=as_float)
+    eps: object = eqx.field(converter=as_float, default=1e-4)
+
+    def __check_init__(self):
+        nonnegative("Coulomb", "mu", self.mu)
+        positive("Coulomb", "eps", self.eps)
+
+    def force(self, v, z, normal_force):
+        return self.mu * normal_force * smooth_sign(v, self.eps)
+
+    def steady_force(self, v, normal_force):
+        return self.force(v, None, normal_force)
+
+    def is_sliding(self, v, z, normal_force):
+        return jnp.abs(v) > 10.0 * self.eps
+
+    def stiffness_rate(self, normal_force, meff):
+        return self.mu * normal_force / (self.eps * meff)
+
+
+class Stribeck(AbstractFrictionLaw):
+    r"""Coulomb friction with a Stribeck static peak, paper section 3.2, Fig. 10:
+
+    $$F_{nl} = N\left(\mu_c + (\mu_s-\mu_c)\,e^{-(\dot X/v_s)^2}\right)\mathrm{sign}(\dot X).$$
+
+    **Arguments**
+
+    - ``mu_c``, ``mu_s``: kinetic and static coefficients, ``mu_s >= mu_c`` (Table 4: 0.5,
+      0.6).
+    - ``v_s``: Stribeck velocity [m/s] (Table 4 prints 1e4, which makes the exponential 1
+      for any realistic speed, i.e. Coulomb with ``mu_s``; a physical value is ~1e-2).
+    - ``eps``: velocity smoothing [m/s].
+
+    ```python
+    law = Stribeck(mu_c=0.5, mu_s=0.6, v_s=1e-2)
+    law.steady_force(1.0, 10.0)  # -> 5.0 N (kinetic level far above v_s)
+    ```
+    """
+
+    mu_c: object = eqx.field(converter=as_float)
+    mu_s: object = eqx.field(converter=as_float)
+    v_s: object = eqx.field(converter=as_float)
+    eps: object = eqx.field(converter=as_float, default=1e-4)
+
+    def __check_init__(self):
+        nonnegative("Stribeck", "mu_c", self.mu_c)
+        check_scalar("Stribeck", "mu_s", self.mu_s, lo=float(self.mu_c)
+                     if not _traced(self.mu_c) else None)
+        positive("Stribeck", "v_s", self.v_s)
+        positive("Stribeck", "eps", self.eps)
+
+    def level(self, v, normal_force):
+        return normal_force * (self.mu_c + (self.mu_s - self.mu_c) * jnp.exp(-((v / self.v_s) ** 2)))
+
+    def force(self, v, z, normal_force):
+        return self.level(v, normal_force) * smooth_sign(v, self.eps)
+
+    def steady_force(self, v, normal_force):
+        return self.force(v, None, normal_force)
+
+    def is_sliding(self, v, z, normal_force):
+        return jnp.abs(v) > 10.0 * self.eps
+
+    def stiffness_rate(self, normal_force, meff):
+        return self.mu_s * normal_force / (self.eps * meff)
+
+
+def _traced(x):
+    from ._checks import is_traced
+
+    return is_traced(x)
+
+
+class Dahl(AbstractFrictionLaw):
+    r"""Dahl bristle friction, paper section 3.3, Fig. 15:
+
+    $$F_{nl} = \sigma_0 z,\qquad \dot z = \dot X - \frac{\sigma_0 |\dot X|}{F_c} z,
+    \qquad F_c = \mu_c N .$$
+
+    Dahl, *Aerospace Corp. report* TOR-0158 (1968).  ``|z| <= F_c/σ0`` is invariant.
+
+    **Arguments**
+
+    - ``mu_c``: kinetic coefficient (Table 5: 0.5).
+    - ``sigma0``: bristle stiffness σ0 [N/m] (Table 5: 1e4).
+    - ``eps``: smoothing of ``|Ẋ|`` as ``Ẋ tanh(Ẋ/eps)`` [m/s].
+
+    ```python
+    law = Dahl(mu_c=0.5, sigma0=1e4)
+    law.steady_force(0.1, 10.0)  # -> 5.0 N
+    ```
+    """
+
+    num_states: ClassVar[int] = 1
+    mu_c: object = eqx.field(converter=as_float)
+    sigma0: object = eqx.field(converter=as_float)
+    eps: object = eqx.field(converter=as_float, default=1e-4)
+
+    def __check_init__(self):
+        nonnegative("Dahl", "mu_c", self.mu_c)
+        positive("Dahl", "sigma0", self.sigma0)
+        positive("Dahl", "eps", self.eps)
+
+    def _fc(self, normal_force):
+        # a tiny floor keeps N = 0 finite: the bristle then never deflects (z -> 0)
+        return jnp.maximum(self.mu_c * normal_force, 1e-300)
+
+    def force(self, v, z, normal_force):
+        return self.sigma0 * z[0]
+
+    def state_rate(self, v, z, normal_force):
+        return jnp.stack([v - self.sigma0 * smooth_abs(v, self.eps) * z[0] / self._fc(normal_force)])
+
+    def stored_energy(self, z):
+        return 0.5 * self.sigma0 * z[0] ** 2
+
+    def dissipated_power(self, v, z, normal_force):
+        # σ0 z (v - ż) = σ0² |v| z² / Fc >= 0
+        return self.sigma0 * z[0] * (v - self.state_rate(v, z, normal_force)[0])
+
+    def steady_force(self, v, normal_force):
+        return self.mu_c * normal_force * jnp.sign(v)
+
+    def is_sliding(self, v, z, normal_force):
+        # gross sliding: bristles past half their saturation, loaded in the sliding direction
+        f = self.sigma0 * z[0]
+        return (jnp.abs(f) > 0.5 * self.mu_c * normal_force) & (f * v > 0)
+
+    def stiffness_rate(self, normal_force, meff):
+        # bristle vibration, and the relaxation rate σ0|v|/Fc of z at a sliding speed ~1 m/s
+        return jnp.maximum(jnp.sqrt(self.sigma0 / meff), self.sigma0 / self._fc(normal_force))
+
+
+class LuGre(AbstractFrictionLaw):
+    r"""LuGre bristle friction, paper section 3.3, Fig. 16:
+
+    $$F_{nl} = \sigma_0 z + \sigma_1 \dot z + \sigma_2 \dot X,\qquad
+    \dot z = \dot X - \frac{\sigma_0|\dot X|}{g(\dot X)} z,\qquad
+    g(v) = F_c + (F_s - F_c)e^{-(v/v_s)^2},$$
+
+    with ``F_c = μc N`` and ``F_s = μs N``.  Canudas de Wit, Olsson, Åström & Lischinsky,
+    *IEEE TAC* 40 (1995) 419.  Steady sliding gives ``g(v) sign(v) + σ2 v``.
+
+    **Arguments**
+
+    - ``mu_c``, ``mu_s``: kinetic and static coefficients (Table 5: 0.5, 0.6).
+    - ``v_s``: Stribeck velocity [m/s] (Table 5 prints 1e4).
+    - ``sigma0``: bristle stiffness [N/m] (1e4); ``sigma1``: bristle damping [N s/m] (1e2);
+      ``sigma2``: viscous (lubrication) damping [N s/m] (0).
+    - ``eps``: smoothing of ``|Ẋ|`` [m/s].
+
+    ```python
+    law = LuGre(mu_c=0.5, mu_s=0.6, v_s=1e-2, sigma0=1e4, sigma1=1e2, sigma2=0.0)
+    law.steady_force(1.0, 10.0)  # -> 5.0 N
+    ```
+    """
+
+    num_states: ClassVar[int] = 1
+    mu_c: object = eqx.field(converter=as_float)
+    mu_s: object = eqx.field(converter=as_float)
+    v_s: object = eqx.field(converter=as_float)
+    sigma0: object = eqx.field(converter=as_float)
+    sigma1: object = eqx.field(converter=as_float)
+    sigma2: object = eqx.field(converter=as_float, default=0.0)
+    eps: object = eqx.field(converter=as_float, default=1e-4)
+
+    def __check_init__(self):
+        nonnegative("LuGre", "mu_c", self.mu_c)
+        check_scalar("LuGre", "mu_s", self.mu_s, lo=float(self.mu_c)
+                     if not _traced(self.mu_c) else None)
+        positive("LuGre", "v_s", self.v_s)
+        positive("LuGre", "sigma0", self.sigma0)
+        nonnegative("LuGre", "sigma1", self.sigma1)
+        nonnegative("LuGre", "sigma2", self.sigma2)
+        positive("LuGre", "eps", self.eps)
+
+    def g(self, v, normal_force):
+        lvl = normal_force * (self.mu_c + (self.mu_s - self.mu_c) * jnp.exp(-((v / self.v_s) ** 2)))
+        return jnp.maximum(lvl, 1e-300)
+
+    def state_rate(self, v, z, normal_force):
+        return jnp.stack([v - self.sigma0 * smooth_abs(v, self.eps) * z[0] / self.g(v, normal_force)])
+
+    def force(self, v, z, normal_force):
+        zdot = self.state_rate(v, z, normal_force)[0]
+        return self.sigma0 * z[0] + self.sigma1 * zdot + self.sigma2 * v
+
+    def stored_energy(self, z):
+        return 0.5 * self.sigma0 * z[0] ** 2
+
+    def dissipated_power(self, v, z, normal_force):
+        zdot = self.state_rate(v, z, normal_force)[0]
+        return self.force(v, z, normal_force) * v - self.sigma0 * z[0] * zdot
+
+    def steady_force(self, v, normal_force):
+        return self.g(v, normal_force) * jnp.sign(v) + self.sigma2 * v
+
+    def is_sliding(self, v, z, normal_force):
+        f = self.sigma0 * z[0]
+        return (jnp.abs(f) > 0.5 * self.g(v, normal_force)) & (f * v > 0)
+
+    def stiffness_rate(self, normal_force, meff):
+        # bristle vibration and damping, and the relaxation rate σ0|v|/g of z (~1 m/s)
+        fc = jnp.maximum(self.mu_c * normal_force, 1e-300)
+        return jnp.maximum(jnp.maximum(jnp.sqrt(self.sigma0 / meff), (self.sigma1 + self.sigma2) / meff),
+                           self.sigma0 / fc)
+
+
+FRICTION_LAWS = {"coulomb": Coulomb, "stribeck": Stribeck, "dahl": Dahl, "lugre": LuGre}

@@ -1,0 +1,260 @@
+"""Time integration of an absorber system with diffrax."""
+
+from __future__ import annotations
+
+import math
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._checks import check_scalar, check_state, check_time_grid, is_traced
+from ._forcing import AbstractForcing
+from ._status import Status, from_diffrax
+from ._system import AbstractAbsorberSystem, FrictionAbsorber
+
+# The automatic choice switches to an implicit solver when (largest rate x forcing period)
+# exceeds this.  Measured on the Coulomb scene (Table 4, N = 10 N, ω = 50 rad/s,
+# rtol 1e-6): eps = 1e-4 m/s (λT = 1.3e4): Tsit5 36k steps / 0.12 s per 2 s, Kvaerno5 38k
+# steps / 0.89 s; eps = 1e-5 (λT = 1.3e5): Tsit5 223k steps / 0.75 s per 1 s, Kvaerno5 20k
+# steps / 0.55 s; eps = 1e-6: Tsit5 exhausts 400k steps, Kvaerno5 20k steps / 0.64 s.
+STIFF_STEPS_PER_PERIOD = 4.0e4
+
+EXPLICIT_SOLVERS = {
+    "tsit5": diffrax.Tsit5,
+    "dopri5": diffrax.Dopri5,
+    "dopri8": diffrax.Dopri8,
+    "bosh3": diffrax.Bosh3,
+}
+IMPLICIT_SOLVERS = {
+    "kvaerno3": diffrax.Kvaerno3,
+    "kvaerno5": diffrax.Kvaerno5,
+    "kencarp4": diffrax.KenCarp4,  # IMEX: structure explicit, coupling implicit
+    "kencarp5": diffrax.KenCarp5,
+}
+SOLVERS = {**EXPLICIT_SOLVERS, **IMPLICIT_SOLVERS}
+
+REGIME_NAMES = ("jammed", "partially gliding", "totally gliding")
+
+
+def choose_solver(system: AbstractAbsorberSystem, forcing: AbstractForcing) -> str:
+    """The automatic solver choice: ``"tsit5"`` unless the scene is stiff (the largest rate of
+    its linearised coupling times the forcing period exceeds ``STIFF_STEPS_PER_PERIOD``), then
+    ``"kvaerno5"``.  Returns the solver's name."""
+    lam, period = system.stiffness_rate(), forcing.period
+    if is_traced(lam) or is_traced(period):
+        return "tsit5"
+    return "kvaerno5" if float(lam) * float(period) > STIFF_STEPS_PER_PERIOD else "tsit5"
+
+
+def _resolve_solver(solver, system, forcing):
+    if solver is None or solver == "auto":
+        solver = choose_solver(system, forcing)
+    if isinstance(solver, str):
+        key = solver.lower()
+        if key not in SOLVERS:
+            raise ValueError(f"solver must be one of {sorted(SOLVERS)} or 'auto', got {solver!r}")
+        return key, SOLVERS[key]()
+    if isinstance(solver, diffrax.AbstractSolver):
+        return type(solver).__name__.lower(), solver
+    raise ValueError(f"solver must be a name, 'auto' or a diffrax solver, got {solver!r}")
+
+
+def make_terms(system, forcing, solver, energy=False):
+    """diffrax terms for ``system``: one ODETerm, or an (explicit, implicit) MultiTerm pair
+    for IMEX solvers (linear structure explicit, coupling implicit)."""
+
+    def full(t, s, args):
+        ds = system.vector_field(t, s[: system.num_states], forcing)
+        if energy:
+            pin, pdiss = system.power(t, s, forcing)
+            ds = jnp.concatenate([ds, jnp.stack([pin, pdiss])])
+        return ds
+
+    if isinstance(solver, diffrax.AbstractImplicitSolver) and isinstance(
+        solver, (diffrax.KenCarp3, diffrax.KenCarp4, diffrax.KenCarp5)
+    ):
+        n = system.num_states
+
+        def coupling_part(t, s, args):
+            ds = system.coupling_rate(s[:n])
+            if energy:
+                ds = jnp.concatenate([ds, jnp.zeros(2, ds.dtype)])
+            return ds
+
+        def structure_part(t, s, args):
+            return full(t, s, args) - coupling_part(t, s, args)
+
+        return diffrax.MultiTerm(diffrax.ODETerm(structure_part), diffrax.ODETerm(coupling_part))
+    return diffrax.ODETerm(full)
+
+
+class Trajectory(eqx.Module):
+    """A simulated trajectory.
+
+    Attributes: ``ts`` [s]; ``ys`` the public states ``[x1, v1, x2, v2, (z)]`` at ``ts``;
+    ``coupling_force`` [N], the force the absorber exerts on the primary (the contact force
+    ``Fc`` for impact scenes); for friction scenes ``friction_force`` (``Fnl``),
+    ``force_ratio`` (``|Fa|/|Fnl|`` with ``Fa = m2 Ẍ``, paper Figs. 13, 19) and ``regime``
+    (0 jammed, 1 partially gliding, 2 totally gliding, judged over the forcing period ending at
+    each instant); with ``energy=True``, ``work`` (done by the forcing) and ``dissipated``
+    [J]; ``status`` (see :class:`Status`), ``num_steps`` and ``solver``.
+    """
+
+    ts: jax.Array
+    ys: jax.Array
+    coupling_force: jax.Array
+    status: jax.Array
+    num_steps: jax.Array
+    system: AbstractAbsorberSystem
+    forcing: AbstractForcing
+    friction_force: jax.Array | None = None
+    force_ratio: jax.Array | None = None
+    sliding: jax.Array | None = None
+    regime: jax.Array | None = None
+    work: jax.Array | None = None
+    dissipated: jax.Array | None = None
+    solver: str = eqx.field(static=True, default="")
+
+    @property
+    def x1(self):
+        return self.ys[..., 0]
+
+    @property
+    def v1(self):
+        return self.ys[..., 1]
+
+    @property
+    def x2(self):
+        return self.ys[..., 2]
+
+    @property
+    def v2(self):
+        return self.ys[..., 3]
+
+    @property
+    def z(self):
+        return self.ys[..., 4:]
+
+    @property
+    def ok(self):
+        return self.status == Status.SUCCESS
+
+    @property
+    def relative(self):
+        """Absorber displacement relative to the primary, ``x2 - x1`` [m]."""
+        return self.x2 - self.x1
+
+    def mechanical_energy(self):
+        to_int = jax.vmap(self.system.to_internal)
+        return jax.vmap(self.system.mechanical_energy)(to_int(self.ys))
+
+    def amplitude(self, signal="x1", last_periods=10):
+        """Half peak-to-peak [m] of ``signal`` over the last ``last_periods`` forcing periods
+        (host-side helper for plots and reports)."""
+        x = np.asarray(getattr(self, signal))
+        ts = np.asarray(self.ts)
+        T = float(self.forcing.period)
+        sel = ts >= ts[-1] - last_periods * T
+        return 0.5 * (x[sel].max() - x[sel].min())
+
+
+def _regime(ts, sliding, period):
+    """Regime per instant from the fraction of the forcing period ending there spent in gross
+    sliding: < 2 % jammed (0), > 80 % totally gliding (2), else partially gliding (1)."""
+    frac_cum = jnp.concatenate([jnp.zeros(1), jnp.cumsum(sliding.astype(ts.dtype))])
+    j = jnp.searchsorted(ts, ts - period, side="right")
+    i = jnp.arange(ts.shape[0]) + 1
+    frac = (frac_cum[i] - frac_cum[j]) / jnp.maximum(i - j, 1)
+    return jnp.where(frac < 0.02, 0, jnp.where(frac > 0.8, 2, 1))
+
+
+@eqx.filter_jit
+def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw, energy):
+    terms = make_terms(system, forcing, solver, energy)
+    if energy:
+        s0 = jnp.concatenate([s0, jnp.zeros(2, s0.dtype)])
+    sol = diffrax.diffeqsolve(
+        terms, solver, t0, t1, dt0, s0,
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
+        max_steps=max_steps, throw=throw,
+    )
+    status = from_diffrax(sol.result)
+    n = system.num_states
+    s = sol.ys[:, :n]
+    status = jnp.where((status == Status.SUCCESS) & ~jnp.all(jnp.isfinite(s)), Status.NONFINITE,
+                       status)
+    acc = jax.vmap(lambda t, si: system.accelerations(t, si, forcing))(ts, s)
+    a1, a2, fp, _ = acc
+    out = dict(ts=ts, ys=system.to_public(s), coupling_force=fp, status=status,
+               num_steps=sol.stats["num_steps"], system=system, forcing=forcing)
+    if isinstance(system, FrictionAbsorber):
+        fnl = jax.vmap(system.friction_force)(s[:, 2], s[:, 3], s[:, 4:])
+        fa = system.m2 * (a1 - a2)
+        tiny = 1e-12 * jnp.maximum(system.normal_force, 1e-300)
+        sliding = jax.vmap(system.is_sliding)(s[:, 2], s[:, 3], s[:, 4:])
+        out.update(friction_force=fnl, force_ratio=jnp.abs(fa) / jnp.maximum(jnp.abs(fnl), tiny),
+                   sliding=sliding, regime=_regime(ts, sliding, forcing.period))
+    if energy:
+        out.update(work=sol.ys[:, n], dissipated=sol.ys[:, n + 1])
+    return out
+
+
+def simulate(system: AbstractAbsorberSystem, forcing: AbstractForcing, t1, *, t0=0.0, ts=None,
+             y0=None, solver=None, rtol=1e-8, atol=1e-10, dt0=None, max_steps=1_000_000,
+             throw=True, energy=False, saves_per_period=40) -> Trajectory:
+    """Integrate ``system`` under ``forcing`` from ``t0`` to ``t1`` [s] (float64, diffrax).
+
+    **Arguments**
+
+    - ``system``: an :class:`ImpactAbsorber` or :class:`FrictionAbsorber`.
+    - ``forcing``: a :class:`Harmonic` or :class:`RampedHarmonic`.
+    - ``t1``: final time [s]; ``t0``: initial time (default 0).
+    - ``ts``: save times (sorted, within ``[t0, t1]``); default a uniform grid with
+      ``saves_per_period`` points per forcing period (at least 1001).
+    - ``y0``: public initial state ``[x1, v1, x2, v2, (z)]``; default rest.
+    - ``solver``: ``None``/``"auto"`` (explicit Tsit5, or implicit Kvaerno5 when the scene is
+      stiff, see :func:`choose_solver`), a name in ``SOLVERS``, or a diffrax solver.
+    - ``rtol``, ``atol``: PID step-size controller tolerances.
+    - ``max_steps``: integrator step budget; ``throw``: raise on failure (``False``: read
+      ``trajectory.status`` instead, as under ``vmap``).
+    - ``energy``: also integrate the work done by the forcing and the dissipated energy.
+
+    **Returns** a :class:`Trajectory`.
+
+    ```python
+    import absorber_jax as aj
+    system, forcing = aj.presets.impact("kelvin_voigt")
+    traj = aj.simulate(system, forcing, 2.0)
+    traj.amplitude("x1")   # half peak-to-peak of the primary over the last 10 periods
+    ```
+    """
+    if not isinstance(system, AbstractAbsorberSystem):
+        raise ValueError(f"system must be an ImpactAbsorber or FrictionAbsorber, got {type(system).__name__}")
+    if not isinstance(forcing, AbstractForcing):
+        raise ValueError(f"forcing must be a forcing (e.g. Harmonic), got {type(forcing).__name__}")
+    check_scalar("simulate", "t0", t0)
+    check_scalar("simulate", "t1", t1, lo=float(t0), lo_open=True)
+    check_scalar("simulate", "rtol", rtol, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    check_scalar("simulate", "atol", atol, lo=0.0, lo_open=True)
+    if not isinstance(max_steps, int) or max_steps < 1:
+        raise ValueError(f"simulate.max_steps must be a positive integer, got {max_steps!r}")
+    if dt0 is not None:
+        check_scalar("simulate", "dt0", dt0, lo=0.0, lo_open=True)
+    check_state("y0", y0, system.num_states)
+    if ts is None:
+        n = int(min(max(1001, math.ceil((t1 - t0) / float(forcing.period) * saves_per_period) + 1),
+                    400_001))
+        ts = jnp.linspace(t0, t1, n)
+    else:
+        check_time_grid("ts", ts, t0=float(t0), t1=float(t1))
+        ts = jnp.asarray(ts, dtype=float)
+    name, solver_obj = _resolve_solver(solver, system, forcing)
+    s0 = system.rest_state() if y0 is None else system.to_internal(jnp.asarray(y0, dtype=float))
+    f = lambda x: jnp.asarray(x, dtype=float)
+    out = _solve(system, forcing, solver_obj, f(t0), f(t1), ts, s0, f(rtol), f(atol),
+                 None if dt0 is None else f(dt0), max_steps, bool(throw), bool(energy))
+    return Trajectory(**out, solver=name)

@@ -1,0 +1,263 @@
+"""Primary + absorber systems.
+
+Both systems share one vector field, composed as *linear primary structure + coupling*:
+the primary (mass, spring, dashpot to ground, forced) and an absorber mass joined to it by
+a coupling force.  The coupling is the contact law at the two walls of a clearance
+(:class:`ImpactAbsorber`) or a spring, dashpot and friction law (:class:`FrictionAbsorber`).
+
+Internal state (what the integrator sees): ``[x1, v1, u, w, *z]`` with the absorber's motion
+*relative* to the primary, ``u = x2 - x1`` and ``w = v2 - v1`` (accurate near contact and
+during sticking), then the friction law's internal states ``z`` (Dahl, LuGre only).
+Public state (``y0``, trajectories): absolute ``[x1, v1, x2, v2, *z]``.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ._checks import as_float, nonnegative, positive
+from ._contact import AbstractContactLaw
+from ._friction import AbstractFrictionLaw
+
+
+class AbstractAbsorberSystem(eqx.Module):
+    """A forced linear primary carrying one absorber through a nonlinear coupling."""
+
+    @property
+    @abc.abstractmethod
+    def primary(self):
+        """``(mass, stiffness, damping)`` of the primary."""
+
+    @property
+    @abc.abstractmethod
+    def absorber_mass(self):
+        """Mass of the absorber [kg]."""
+
+    @property
+    def num_law_states(self) -> int:
+        return 0
+
+    @property
+    def num_states(self) -> int:
+        return 4 + self.num_law_states
+
+    @abc.abstractmethod
+    def coupling(self, u, w, z):
+        """``(force on the primary from the absorber [N], dz/dt)`` for relative motion
+        ``u = x2 - x1``, ``w = v2 - v1`` and law state ``z``."""
+
+    @abc.abstractmethod
+    def coupling_potential(self, u, z):
+        """Elastic energy [J] stored in the coupling (exact, nonsmooth expression)."""
+
+    @abc.abstractmethod
+    def coupling_dissipation(self, u, w, z):
+        """Power [W] dissipated in the coupling."""
+
+    @abc.abstractmethod
+    def stiffness_rate(self):
+        """Rough largest rate [1/s] of the linearised dynamics (solver choice)."""
+
+    # -- state conversions ---------------------------------------------------------
+    def to_internal(self, y):
+        y = jnp.asarray(y)
+        rel = jnp.stack([y[0], y[1], y[2] - y[0], y[3] - y[1]])
+        return jnp.concatenate([rel, y[4:]])
+
+    def to_public(self, s):
+        s = jnp.asarray(s)
+        ab = jnp.stack([s[..., 0], s[..., 1], s[..., 0] + s[..., 2], s[..., 1] + s[..., 3]], axis=-1)
+        return jnp.concatenate([ab, s[..., 4:]], axis=-1)
+
+    def rest_state(self):
+        """Internal state at rest (the absorber centred, bristles undeflected)."""
+        return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
+
+    # -- dynamics --------------------------------------------------------------------
+    def accelerations(self, t, s, forcing):
+        M, k, c = self.primary
+        fp, zdot = self.coupling(s[2], s[3], s[4:])
+        a1 = (forcing(t) - c * s[1] - k * s[0] + fp) / M
+        a2 = -fp / self.absorber_mass
+        return a1, a2, fp, zdot
+
+    def vector_field(self, t, s, forcing):
+        """d/dt of the internal state ``s`` under ``forcing``."""
+        a1, a2, _, zdot = self.accelerations(t, s, forcing)
+        return jnp.concatenate([jnp.stack([s[1], a1, s[3], a2 - a1]), zdot])
+
+    def coupling_rate(self, s):
+        """The coupling's share of ``vector_field`` (the stiff part, for IMEX solvers)."""
+        M = self.primary[0]
+        fp, zdot = self.coupling(s[2], s[3], s[4:])
+        zero = jnp.zeros((), s.dtype)
+        return jnp.concatenate([jnp.stack([zero, fp / M, zero, -fp / self.absorber_mass - fp / M]),
+                                zdot])
+
+    def mechanical_energy(self, s):
+        """Kinetic + potential energy [J] of internal state ``s`` (exact contact potential)."""
+        M, k, _ = self.primary
+        v2 = s[1] + s[3]
+        return (0.5 * M * s[1] ** 2 + 0.5 * self.absorber_mass * v2**2 + 0.5 * k * s[0] ** 2
+                + self.coupling_potential(s[2], s[4:]))
+
+    def power(self, t, s, forcing):
+        """``(input power of the forcing, dissipated power)`` [W]."""
+        _, _, c = self.primary
+        return forcing(t) * s[1], c * s[1] ** 2 + self.coupling_dissipation(s[2], s[3], s[4:])
+
+
+class ImpactAbsorber(AbstractAbsorberSystem):
+    r"""Impact absorber (paper section 2, DESIGN.md §1.1).
+
+    A primary ``M, k, c`` forced by ``F(t)`` carries an absorber mass ``m`` that moves freely
+    in a cavity with clearance ``gap`` on each side.  With ``y = x2 - x1``,
+    ``δ± = max(0, ±y - d)`` and ``Fc = f(δ+, ẏ) - f(δ-, -ẏ)``:
+
+    $$M\ddot x_1 + c\dot x_1 + kx_1 = F_c + F(t),\qquad m\ddot x_2 = -F_c .$$
+
+    **Arguments**
+
+    - ``M``: primary mass [kg] (1); ``k``: primary stiffness [N/m] (1e3); ``c``: primary
+      damping [N s/m] (0.1).
+    - ``m``: absorber mass [kg] (0.4).
+    - ``gap``: clearance ``d`` on each side [m] (the paper gives none; our default 1e-3).
+    - ``contact``: a :class:`KelvinVoigt`, :class:`Hertz` or :class:`HuntCrossley` law.
+
+    ```python
+    sys = ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3,
+                         contact=KelvinVoigt(stiffness=400.0, damping=20.0))
+    ```
+    """
+
+    M: object = eqx.field(converter=as_float)
+    k: object = eqx.field(converter=as_float)
+    c: object = eqx.field(converter=as_float)
+    m: object = eqx.field(converter=as_float)
+    gap: object = eqx.field(converter=as_float)
+    contact: AbstractContactLaw
+
+    def __check_init__(self):
+        positive("ImpactAbsorber", "M", self.M)
+        nonnegative("ImpactAbsorber", "k", self.k)
+        nonnegative("ImpactAbsorber", "c", self.c)
+        positive("ImpactAbsorber", "m", self.m)
+        nonnegative("ImpactAbsorber", "gap", self.gap)
+        if not isinstance(self.contact, AbstractContactLaw):
+            raise ValueError("ImpactAbsorber.contact must be a contact law (KelvinVoigt, Hertz "
+                             f"or HuntCrossley), got {type(self.contact).__name__}")
+
+    @property
+    def primary(self):
+        return self.M, self.k, self.c
+
+    @property
+    def absorber_mass(self):
+        return self.m
+
+    def walls(self, u, w):
+        """``((f+, δ+, δ̇+), (f-, δ-, δ̇-))`` at the right and left walls."""
+        return (self.contact.wall_force(u - self.gap, w),
+                self.contact.wall_force(-u - self.gap, -w))
+
+    def coupling(self, u, w, z):
+        (fr, _, _), (fl, _, _) = self.walls(u, w)
+        return fr - fl, jnp.zeros((0,), dtype=jnp.result_type(u))
+
+    def coupling_potential(self, u, z):
+        return (self.contact.potential(jnp.maximum(u - self.gap, 0.0))
+                + self.contact.potential(jnp.maximum(-u - self.gap, 0.0)))
+
+    def coupling_dissipation(self, u, w, z):
+        (_, dr, ddr), (_, dl, ddl) = self.walls(u, w)
+        return self.contact.dissipated_power(dr, ddr) + self.contact.dissipated_power(dl, ddl)
+
+    def stiffness_rate(self):
+        meff = self.M * self.m / (self.M + self.m)
+        structural = jnp.maximum(jnp.sqrt(self.k / self.M), self.c / self.M)
+        return jnp.maximum(structural, self.contact.stiffness_rate(meff, jnp.maximum(self.gap, 1e-3)))
+
+
+class FrictionAbsorber(AbstractAbsorberSystem):
+    r"""Friction absorber (paper section 3, equations as corrected in DESIGN.md §1.2).
+
+    A primary ``m1, k1, c1`` forced by ``F(t)`` carries an absorber ``m2`` tied to it by
+    ``k2, c2`` and sliding on it under the normal force ``N``.  With ``X = x1 - x2``:
+
+    $$m_1\ddot x_1 + c_1\dot x_1 + k_1x_1 + c_2\dot X + k_2X + F_{nl} = F(t),\qquad
+    m_2\ddot x_2 - c_2\dot X - k_2X - F_{nl} = 0 .$$
+
+    **Arguments**
+
+    - ``m1``, ``k1``, ``c1``: primary mass [kg], stiffness [N/m], damping [N s/m]
+      (Tables 4–5: 1, 1e4, 0).
+    - ``m2``, ``k2``, ``c2``: absorber mass, tie stiffness and damping (1, 1e4, 0).
+    - ``normal_force``: ``N`` [N] (the paper gives none; see :mod:`absorber_jax.presets`).
+    - ``friction``: a :class:`Coulomb`, :class:`Stribeck`, :class:`Dahl` or :class:`LuGre` law.
+
+    ```python
+    sys = FrictionAbsorber(m1=1.0, k1=1e4, c1=0.0, m2=1.0, k2=1e4, c2=0.0,
+                           normal_force=10.0, friction=Coulomb(mu=0.5))
+    ```
+    """
+
+    m1: object = eqx.field(converter=as_float)
+    k1: object = eqx.field(converter=as_float)
+    c1: object = eqx.field(converter=as_float)
+    m2: object = eqx.field(converter=as_float)
+    k2: object = eqx.field(converter=as_float)
+    c2: object = eqx.field(converter=as_float)
+    normal_force: object = eqx.field(converter=as_float)
+    friction: AbstractFrictionLaw
+
+    def __check_init__(self):
+        positive("FrictionAbsorber", "m1", self.m1)
+        nonnegative("FrictionAbsorber", "k1", self.k1)
+        nonnegative("FrictionAbsorber", "c1", self.c1)
+        positive("FrictionAbsorber", "m2", self.m2)
+        nonnegative("FrictionAbsorber", "k2", self.k2)
+        nonnegative("FrictionAbsorber", "c2", self.c2)
+        nonnegative("FrictionAbsorber", "normal_force", self.normal_force)
+        if not isinstance(self.friction, AbstractFrictionLaw):
+            raise ValueError("FrictionAbsorber.friction must be a friction law (Coulomb, "
+                             f"Stribeck, Dahl or LuGre), got {type(self.friction).__name__}")
+
+    @property
+    def primary(self):
+        return self.m1, self.k1, self.c1
+
+    @property
+    def absorber_mass(self):
+        return self.m2
+
+    @property
+    def num_law_states(self) -> int:
+        return self.friction.num_states
+
+    def friction_force(self, u, w, z):
+        """``Fnl`` [N] (positive drags the absorber along with the primary)."""
+        return self.friction.force(-w, z, self.normal_force)
+
+    def coupling(self, u, w, z):
+        X, V = -u, -w
+        fnl = self.friction.force(V, z, self.normal_force)
+        zdot = self.friction.state_rate(V, z, self.normal_force)
+        return -(self.c2 * V + self.k2 * X + fnl), zdot
+
+    def coupling_potential(self, u, z):
+        return 0.5 * self.k2 * u**2 + self.friction.stored_energy(z)
+
+    def coupling_dissipation(self, u, w, z):
+        return self.c2 * w**2 + self.friction.dissipated_power(-w, z, self.normal_force)
+
+    def is_sliding(self, u, w, z):
+        return self.friction.is_sliding(-w, z, self.normal_force)
+
+    def stiffness_rate(self):
+        meff = self.m1 * self.m2 / (self.m1 + self.m2)
+        structural = jnp.maximum(jnp.sqrt((self.k1 + self.k2) / meff),
+                                 (self.c1 + self.c2) / meff)
+        return jnp.maximum(structural, self.friction.stiffness_rate(self.normal_force, meff))

@@ -172,8 +172,8 @@ class ImpactAbsorber(AbstractAbsorberSystem):
                 + self.contact.potential(jnp.maximum(-u - self.gap, 0.0)))
 
     def coupling_dissipation(self, u, w, z):
-        (_, dr, ddr), (_, dl, ddl) = self.walls(u, w)
-        return self.contact.dissipated_power(dr, ddr) + self.contact.dissipated_power(dl, ddl)
+        return (self.contact.dissipated_power(u - self.gap, w)
+                + self.contact.dissipated_power(-u - self.gap, -w))
 
     def stiffness_rate(self):
         meff = self.M * self.m / (self.M + self.m)

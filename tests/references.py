@@ -1,0 +1,153 @@
+"""Independent event-exact (nonsmooth) reference solutions, written with scipy only.
+
+Nothing here imports absorber_jax: the equations are switched at contact and stick–slip
+events and integrated with DOP853 at tight tolerances.
+"""
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.linalg import expm
+
+RTOL, ATOL = 1e-12, 1e-15
+
+
+def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0)):
+    """Piecewise-linear impact oscillator: free flight for |y| < d, the Kelvin–Voigt law
+    (adhesive, as the paper's) at the wall being penetrated.  Returns x1, x2 at t_eval."""
+
+    def rhs(mode):
+        def f(t, s):
+            x1, v1, x2, v2 = s
+            y, yd = x2 - x1, v2 - v1
+            if mode == 1:
+                fc = k1 * (y - d) + c1 * yd
+            elif mode == -1:
+                fc = k1 * (y + d) + c1 * yd
+            else:
+                fc = 0.0
+            a1 = (F0 * np.sin(omega * t) - c * v1 - k * x1 + fc) / M
+            return [v1, a1, v2, -fc / m]
+
+        return f
+
+    def event(sign, direction):
+        def g(t, s):
+            return (s[2] - s[0]) - sign * d
+
+        g.terminal, g.direction = True, direction
+        return g
+
+    # watched crossings per mode; the direction keeps a restart on the wall from re-firing
+    events = {0: [event(1, 1), event(-1, -1)], 1: [event(1, -1)], -1: [event(-1, 1)]}
+    t, s = 0.0, np.array(y0, dtype=float)
+    y = s[2] - s[0]
+    mode = 1 if y > d else (-1 if y < -d else 0)
+    t1 = t_eval[-1]
+    out_t, out_s = [], []
+    while t < t1:
+        sol = solve_ivp(rhs(mode), (t, t1), s, method="DOP853", rtol=RTOL, atol=ATOL,
+                        events=events[mode], dense_output=True)
+        t_end = sol.t[-1]
+        sel = (t_eval >= t) & (t_eval <= t_end)
+        if sel.any():
+            out_t.append(t_eval[sel])
+            out_s.append(np.atleast_2d(sol.sol(t_eval[sel]).T))
+        if sol.status != 1:
+            break
+        s = sol.y[:, -1].copy()
+        if mode != 0:
+            mode = 0  # left the wall
+        else:
+            mode = 1 if sol.t_events[0].size else -1  # hit the right / left wall
+        t = t_end
+    ts = np.concatenate(out_t)
+    ys = np.concatenate(out_s)
+    _, idx = np.unique(ts, return_index=True)
+    return ys[idx, 0], ys[idx, 2]
+
+
+def friction_coulomb(m1, k1, c1, m2, k2, c2, mu, N, F0, omega, t_eval):
+    """Event-exact Coulomb stick–slip (static = kinetic coefficient ``mu``).
+
+    Modes: stick (the masses move together, X frozen) while the friction needed to hold them
+    stays within mu N; slip with Fnl = ±mu N until the relative velocity returns to zero."""
+    fmax = mu * N
+
+    def forcing(t):
+        return F0 * np.sin(omega * t)
+
+    def f_required(t, s):
+        x1, v1, x2, v2 = s
+        a = (forcing(t) - c1 * v1 - k1 * x1) / (m1 + m2)
+        return m2 * a - k2 * (x1 - x2) - c2 * (v1 - v2)
+
+    def rhs(mode):
+        def f(t, s):
+            x1, v1, x2, v2 = s
+            if mode == 0:
+                a = (forcing(t) - c1 * v1 - k1 * x1) / (m1 + m2)
+                return [v1, a, v2, a]
+            X, V = x1 - x2, v1 - v2
+            fnl = mode * fmax
+            a1 = (forcing(t) - c1 * v1 - k1 * x1 - c2 * V - k2 * X - fnl) / m1
+            a2 = (c2 * V + k2 * X + fnl) / m2
+            return [v1, a1, v2, a2]
+
+        return f
+
+    def ev_vel(direction):
+        def g(t, s):
+            return s[1] - s[3]
+
+        g.terminal, g.direction = True, direction
+        return g
+
+    def ev_break(t, s):
+        return abs(f_required(t, s)) - fmax
+
+    ev_break.terminal, ev_break.direction = True, 1
+    events = {0: [ev_break], 1: [ev_vel(-1)], -1: [ev_vel(1)]}
+    t, s, mode = 0.0, np.zeros(4), 0
+    t1 = t_eval[-1]
+    out_t, out_s = [], []
+    nudge = False
+    while t < t1:
+        if nudge:  # a grazing transition fired at once: step 1e-10 s in the new mode first
+            s = solve_ivp(rhs(mode), (t, t + 1e-10), s, method="DOP853", rtol=RTOL,
+                          atol=ATOL).y[:, -1]
+            t += 1e-10
+        sol = solve_ivp(rhs(mode), (t, t1), s, method="DOP853", rtol=RTOL, atol=ATOL,
+                        events=events[mode], dense_output=True)
+        nudge = sol.t[-1] - t < 1e-12
+        t_end = sol.t[-1]
+        sel = (t_eval >= t) & (t_eval <= t_end)
+        if sel.any():
+            out_t.append(t_eval[sel])
+            out_s.append(np.atleast_2d(sol.sol(t_eval[sel]).T))
+        if sol.status != 1:
+            break
+        s = sol.y[:, -1].copy()
+        fr = f_required(t_end, s)
+        if mode == 0:
+            mode = 1 if fr > 0 else -1
+        else:
+            s[3] = s[1]  # exactly zero relative velocity
+            mode = 0 if abs(fr) <= fmax else (1 if fr > 0 else -1)
+        t = t_end
+    ts = np.concatenate(out_t)
+    ys = np.concatenate(out_s)
+    _, idx = np.unique(ts, return_index=True)
+    return ys[idx, 0], ys[idx, 2]
+
+
+def linear_two_mass(Mmat, Cmat, Kmat, fvec, F0, omega, t_eval):
+    """Exact response from rest of M q'' + C q' + K q = f F0 sin(ωt): particular harmonic
+    solution plus the matrix-exponential homogeneous part."""
+    n = Mmat.shape[0]
+    Minv = np.linalg.inv(Mmat)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ Kmat, -Minv @ Cmat]])
+    b = np.concatenate([np.zeros(n), Minv @ fvec]) * F0
+    Y = np.linalg.solve(1j * omega * np.eye(2 * n) - A, b)  # response to b e^{iωt}
+    yp = lambda t: np.imag(Y * np.exp(1j * omega * t))
+    h0 = -yp(0.0)
+    return np.array([expm(A * t) @ h0 + yp(t) for t in t_eval])

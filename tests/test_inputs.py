@@ -1,0 +1,94 @@
+"""Bad input is rejected before anything is compiled, with a ValueError naming the field
+and the allowed range."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import absorber_jax as aj
+
+KV = dict(stiffness=400.0, damping=20.0)
+
+
+def impact(**kw):
+    base = dict(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3, contact=aj.KelvinVoigt(**KV))
+    base.update(kw)
+    return aj.ImpactAbsorber(**base)
+
+
+def friction(**kw):
+    base = dict(m1=1.0, k1=1e4, c1=0.0, m2=1.0, k2=1e4, c2=0.0, normal_force=2.0,
+                friction=aj.Coulomb(mu=0.5))
+    base.update(kw)
+    return aj.FrictionAbsorber(**base)
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        # masses zero or negative
+        (lambda: impact(M=0.0), r"ImpactAbsorber\.M must be in \(0, inf\)"),
+        (lambda: impact(m=-0.4), r"ImpactAbsorber\.m must be in \(0, inf\)"),
+        (lambda: friction(m2=0.0), r"FrictionAbsorber\.m2 must be in \(0, inf\)"),
+        # negative stiffness or damping
+        (lambda: impact(k=-1.0), r"ImpactAbsorber\.k must be in \[0, inf\)"),
+        (lambda: friction(c2=-1.0), r"FrictionAbsorber\.c2 must be in \[0, inf\)"),
+        (lambda: aj.KelvinVoigt(stiffness=-400.0, damping=20.0), r"KelvinVoigt\.stiffness"),
+        (lambda: aj.HuntCrossley(stiffness=3260.0, damping=-1.0), r"HuntCrossley\.damping"),
+        (lambda: impact(gap=-1e-3), r"ImpactAbsorber\.gap must be in \[0, inf\)"),
+        (lambda: friction(normal_force=-1.0), r"FrictionAbsorber\.normal_force"),
+        # eps <= 0
+        (lambda: aj.Hertz(stiffness=3260.0, damping=20.0, eps=0.0), r"Hertz\.eps must be in \(0"),
+        (lambda: aj.Coulomb(mu=0.5, eps=-1e-4), r"Coulomb\.eps must be in \(0"),
+        (lambda: aj.Dahl(mu_c=0.5, sigma0=1e4, eps=0.0), r"Dahl\.eps"),
+        # mu_s < mu_c
+        (lambda: aj.Stribeck(mu_c=0.5, mu_s=0.4, v_s=1e-2), r"Stribeck\.mu_s must be in \[0\.5"),
+        (lambda: aj.LuGre(mu_c=0.5, mu_s=0.3, v_s=1e-2, sigma0=1e4, sigma1=1e2),
+         r"LuGre\.mu_s must be in \[0\.5"),
+        # restitution outside (0, 1]
+        (lambda: aj.hunt_crossley_damping(3260.0, 0.0, 1.0), r"restitution must be in \(0, 1\]"),
+        (lambda: aj.hunt_crossley_damping(3260.0, 1.2, 1.0), r"restitution must be in \(0, 1\]"),
+        # non-finite values
+        (lambda: impact(c=float("nan")), r"ImpactAbsorber\.c must be finite"),
+        (lambda: aj.Harmonic(amplitude=float("inf"), omega=10.0), r"Harmonic\.amplitude"),
+        # wrong shapes / types
+        (lambda: impact(M=jnp.ones(3)), r"ImpactAbsorber\.M must be a scalar"),
+        (lambda: aj.Harmonic(amplitude=1.0, omega=[1.0, 2.0]), r"Harmonic\.omega must be a scalar"),
+        (lambda: impact(contact=aj.Coulomb(mu=0.5)), r"contact must be a contact law"),
+        (lambda: friction(friction=aj.KelvinVoigt(**KV)), r"friction must be a friction law"),
+        (lambda: aj.Harmonic(amplitude=1.0, omega=0.0), r"Harmonic\.omega must be in \(0"),
+    ],
+)
+def test_bad_constructor_input(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_bad_simulate_input():
+    system, forcing = aj.presets.impact("kelvin_voigt")
+    with pytest.raises(ValueError, match=r"simulate\.t1 must be in \(0"):
+        aj.simulate(system, forcing, -1.0)
+    with pytest.raises(ValueError, match=r"y0 must have shape \(4,\)"):
+        aj.simulate(system, forcing, 1.0, y0=jnp.zeros(5))
+    with pytest.raises(ValueError, match="y0 must be finite"):
+        aj.simulate(system, forcing, 1.0, y0=jnp.array([0.0, np.nan, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="ts must be strictly increasing"):
+        aj.simulate(system, forcing, 1.0, ts=jnp.array([0.0, 0.5, 0.2]))
+    with pytest.raises(ValueError, match=r"ts must lie in \[t0, t1\]"):
+        aj.simulate(system, forcing, 1.0, ts=jnp.array([0.0, 2.0]))
+    with pytest.raises(ValueError, match=r"simulate\.rtol must be in \(0, 1\)"):
+        aj.simulate(system, forcing, 1.0, rtol=0.0)
+    with pytest.raises(ValueError, match="solver must be one of"):
+        aj.simulate(system, forcing, 1.0, solver="euler-ish")
+    with pytest.raises(ValueError, match="system must be"):
+        aj.simulate(forcing, forcing, 1.0)
+
+
+def test_max_steps_is_flagged_not_silent():
+    system, forcing = aj.presets.impact("kelvin_voigt")
+    tr = aj.simulate(system, forcing, 1.0, max_steps=50, throw=False)
+    assert int(tr.status) == aj.Status.MAX_STEPS
+    assert not bool(tr.ok)
+    assert "max_steps" in aj.describe(tr.status)
+    with pytest.raises(Exception, match="maximum number of solver steps"):
+        aj.simulate(system, forcing, 1.0, max_steps=50)

@@ -1,0 +1,87 @@
+"""Named parameters of a system: the paper's symbols mapped to fields, read and replaced
+functionally (for sweeps over designs, the CLI's ``--set`` and tuning).
+
+Impact absorber: ``M, k, c, m, gap`` and the contact law's ``k1`` (= ``contact.stiffness``,
+``kHz`` for Hertz laws), ``c1`` (= ``contact.damping``), ``eps``.
+Friction absorber: ``m1, k1, c1, m2, k2, c2, N`` (= ``normal_force``) and the friction law's
+fields (``mu``, ``mu_c``, ``mu_s``, ``v_s``, ``sigma0``, ``sigma1``, ``sigma2``, ``eps``).
+Dotted paths (``contact.stiffness``) work too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+
+from ._system import FrictionAbsorber, ImpactAbsorber
+
+_IMPACT_ALIASES = {"k1": "contact.stiffness", "kHz": "contact.stiffness",
+                   "c1": "contact.damping", "eps": "contact.eps"}
+_FRICTION_ALIASES = {"N": "normal_force"}
+
+
+def resolve(system, name: str) -> str:
+    """Dotted field path of parameter ``name`` in ``system``."""
+    if isinstance(system, ImpactAbsorber):
+        path = _IMPACT_ALIASES.get(name, name)
+    elif isinstance(system, FrictionAbsorber):
+        path = _FRICTION_ALIASES.get(name, name)
+        if "." not in path and not hasattr(system, path) and hasattr(system.friction, path):
+            path = "friction." + path
+    else:
+        path = name
+    obj = system
+    for part in path.split("."):
+        if not hasattr(obj, part) or part.startswith("_"):
+            raise ValueError(f"{type(system).__name__} has no parameter {name!r}; "
+                             f"known: {', '.join(parameter_names(system))}")
+        obj = getattr(obj, part)
+    return path
+
+
+def _getter(path):
+    def get(tree):
+        for part in path.split("."):
+            tree = getattr(tree, part)
+        return tree
+
+    return get
+
+
+def get_param(system, name):
+    return _getter(resolve(system, name))(system)
+
+
+def parameter_names(system):
+    names = [f.name for f in dataclasses.fields(system) if f.name not in ("contact", "friction")]
+    if isinstance(system, ImpactAbsorber):
+        names += ["k1", "c1", "eps"]
+    elif isinstance(system, FrictionAbsorber):
+        names += ["N"] + [f.name for f in dataclasses.fields(system.friction)]
+    return names
+
+
+def replace_params(system, values: dict, *, check=True):
+    """``system`` with the named parameters replaced.  With ``check=True`` (concrete values)
+    the result is rebuilt through the constructors, so bad values raise ``ValueError``;
+    with ``check=False`` (inside jit/vmap/grad) it is a plain ``eqx.tree_at``."""
+    paths = [resolve(system, k) for k in values]
+    new = eqx.tree_at(lambda s: [_getter(p)(s) for p in paths], system,
+                      [v for v in values.values()])
+    return _rebuild(new) if check else new
+
+
+def _rebuild(module):
+    """Re-run a module's constructor (converters and checks) on its current fields."""
+    if not isinstance(module, eqx.Module):
+        return module
+    kwargs = {}
+    for f in dataclasses.fields(module):
+        if not f.init:
+            continue
+        kwargs[f.name] = _rebuild(getattr(module, f.name))
+    return type(module)(**kwargs)
+
+
+with_params = replace_params

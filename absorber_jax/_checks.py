@@ -96,8 +96,8 @@ def check_state(name: str, y, size: int):
         return
     arr = np.asarray(y)
     if arr.shape != (size,):
-        raise ValueError(f"{name} must have shape ({size},) [x1, v1, x2, v2{', z' if size > 4 else ''}],"
-                         f" got shape {arr.shape}")
+        names = "x1, v1, x2, v2" + (", z" if size > 4 else "")
+        raise ValueError(f"{name} must have shape ({size},) [{names}], got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite")
 

@@ -3,10 +3,10 @@
 from typing import Union
 
 import numpy as np
-from jaxtyping import Array, ArrayLike, Bool, Float, Int
+from jaxtyping import Array, ArrayLike, Bool, Float, Int  # noqa: F401
 
 Scalar = Float[Array, ""]
-ScalarLike = Union[float, int, np.floating, Float[ArrayLike, ""]]
+ScalarLike = Union[float, int, np.floating, ArrayLike]
 State = Float[Array, " n"]
 States = Float[Array, "t n"]
 Times = Float[Array, " t"]

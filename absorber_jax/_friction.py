@@ -126,13 +126,16 @@ class Stribeck(AbstractFrictionLaw):
 
     def __check_init__(self):
         nonnegative("Stribeck", "mu_c", self.mu_c)
-        check_scalar("Stribeck", "mu_s", self.mu_s, lo=float(self.mu_c)
-                     if not _traced(self.mu_c) else None)
+        check_scalar(
+            "Stribeck", "mu_s", self.mu_s, lo=float(self.mu_c) if not _traced(self.mu_c) else None
+        )
         positive("Stribeck", "v_s", self.v_s)
         positive("Stribeck", "eps", self.eps)
 
     def level(self, v, normal_force):
-        return normal_force * (self.mu_c + (self.mu_s - self.mu_c) * jnp.exp(-((v / self.v_s) ** 2)))
+        return normal_force * (
+            self.mu_c + (self.mu_s - self.mu_c) * jnp.exp(-((v / self.v_s) ** 2))
+        )
 
     def force(self, v, z, normal_force):
         return self.level(v, normal_force) * smooth_sign(v, self.eps)
@@ -191,7 +194,9 @@ class Dahl(AbstractFrictionLaw):
         return self.sigma0 * z[0]
 
     def state_rate(self, v, z, normal_force):
-        return jnp.stack([v - self.sigma0 * smooth_abs(v, self.eps) * z[0] / self._fc(normal_force)])
+        return jnp.stack(
+            [v - self.sigma0 * smooth_abs(v, self.eps) * z[0] / self._fc(normal_force)]
+        )
 
     def stored_energy(self, z):
         return 0.5 * self.sigma0 * z[0] ** 2
@@ -248,8 +253,9 @@ class LuGre(AbstractFrictionLaw):
 
     def __check_init__(self):
         nonnegative("LuGre", "mu_c", self.mu_c)
-        check_scalar("LuGre", "mu_s", self.mu_s, lo=float(self.mu_c)
-                     if not _traced(self.mu_c) else None)
+        check_scalar(
+            "LuGre", "mu_s", self.mu_s, lo=float(self.mu_c) if not _traced(self.mu_c) else None
+        )
         positive("LuGre", "v_s", self.v_s)
         positive("LuGre", "sigma0", self.sigma0)
         nonnegative("LuGre", "sigma1", self.sigma1)
@@ -261,7 +267,9 @@ class LuGre(AbstractFrictionLaw):
         return jnp.maximum(lvl, 1e-300)
 
     def state_rate(self, v, z, normal_force):
-        return jnp.stack([v - self.sigma0 * smooth_abs(v, self.eps) * z[0] / self.g(v, normal_force)])
+        return jnp.stack(
+            [v - self.sigma0 * smooth_abs(v, self.eps) * z[0] / self.g(v, normal_force)]
+        )
 
     def force(self, v, z, normal_force):
         zdot = self.state_rate(v, z, normal_force)[0]
@@ -284,8 +292,10 @@ class LuGre(AbstractFrictionLaw):
     def stiffness_rate(self, normal_force, meff):
         # bristle vibration and damping, and the relaxation rate σ0|v|/g of z (~1 m/s)
         fc = jnp.maximum(self.mu_c * normal_force, 1e-300)
-        return jnp.maximum(jnp.maximum(jnp.sqrt(self.sigma0 / meff), (self.sigma1 + self.sigma2) / meff),
-                           self.sigma0 / fc)
+        return jnp.maximum(
+            jnp.maximum(jnp.sqrt(self.sigma0 / meff), (self.sigma1 + self.sigma2) / meff),
+            self.sigma0 / fc,
+        )
 
 
 FRICTION_LAWS = {"coulomb": Coulomb, "stribeck": Stribeck, "dahl": Dahl, "lugre": LuGre}

@@ -20,11 +20,19 @@ import numpy as np
 from . import presets
 from ._simulate import REGIME_NAMES, simulate
 
-IMPACT_LABELS = {"kelvin_voigt": "linear (Kelvin–Voigt)", "hertz": "semi-linear (Hertz)",
-                 "hunt_crossley": "nonlinear (Hunt–Crossley)"}
-FRICTION_LABELS = {"coulomb": "Coulomb", "stribeck": "Stribeck", "dahl": "Dahl", "lugre": "LuGre",
-                   "stribeck_physical": "Stribeck (v_s = 1e-2)",
-                   "lugre_physical": "LuGre (v_s = 1e-2)"}
+IMPACT_LABELS = {
+    "kelvin_voigt": "linear (Kelvin–Voigt)",
+    "hertz": "semi-linear (Hertz)",
+    "hunt_crossley": "nonlinear (Hunt–Crossley)",
+}
+FRICTION_LABELS = {
+    "coulomb": "Coulomb",
+    "stribeck": "Stribeck",
+    "dahl": "Dahl",
+    "lugre": "LuGre",
+    "stribeck_physical": "Stribeck (v_s = 1e-2)",
+    "lugre_physical": "LuGre (v_s = 1e-2)",
+}
 REGIME_COLORS = ("#d0e4f5", "#fbe3c4", "#d9f0d3")
 
 
@@ -44,21 +52,30 @@ def _shade_regimes(ax, ts, regime):
     seen = set()
     for a, b in zip(starts, ends):
         r = int(regime[a])
-        ax.axvspan(ts[a], ts[b], color=REGIME_COLORS[r], lw=0,
-                   label=None if r in seen else REGIME_NAMES[r])
+        ax.axvspan(
+            ts[a], ts[b], color=REGIME_COLORS[r], lw=0, label=None if r in seen else REGIME_NAMES[r]
+        )
         seen.add(r)
 
 
 def _bristle_response(law, N, x_amp, omega, periods=3):
     """Friction force of a law driven by X(t) = x_amp sin(ωt) (hysteresis loops)."""
+
     def rhs(t, z, args):
         return law.state_rate(x_amp * omega * jnp.cos(omega * t), z, N)
 
     ts = jnp.linspace(0, periods * 2 * jnp.pi / omega, 3000)
-    sol = diffrax.diffeqsolve(diffrax.ODETerm(rhs), diffrax.Kvaerno5(), 0.0, ts[-1], 1e-5,
-                              law.initial_state(), saveat=diffrax.SaveAt(ts=ts),
-                              stepsize_controller=diffrax.PIDController(rtol=1e-8, atol=1e-12),
-                              max_steps=200000)
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(rhs),
+        diffrax.Kvaerno5(),
+        0.0,
+        ts[-1],
+        1e-5,
+        law.initial_state(),
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=diffrax.PIDController(rtol=1e-8, atol=1e-12),
+        max_steps=200000,
+    )
     v = x_amp * omega * jnp.cos(omega * ts)
     f = jax.vmap(lambda vi, zi: law.force(vi, zi, N))(v, sol.ys)
     return np.asarray(x_amp * jnp.sin(omega * ts)), np.asarray(v), np.asarray(f)
@@ -74,9 +91,16 @@ def friction_curves(out_dir):
         f, ax = plt.subplots(figsize=(6, 4))
         for name in names:
             law = presets.friction_law(name)
-            ax.plot(v, law.force(v, None, N), label=f"{FRICTION_LABELS[name]}, eps = {float(law.eps):g} m/s")
-        ax.set(xlabel="relative velocity Ẋ [m/s]", ylabel="Fnl / N [-]",
-               title=f"Fig. {fig}: {FRICTION_LABELS[names[0]]} friction force")
+            ax.plot(
+                v,
+                law.force(v, None, N),
+                label=f"{FRICTION_LABELS[name]}, eps = {float(law.eps):g} m/s",
+            )
+        ax.set(
+            xlabel="relative velocity Ẋ [m/s]",
+            ylabel="Fnl / N [-]",
+            title=f"Fig. {fig}: {FRICTION_LABELS[names[0]]} friction force",
+        )
         ax.axhline(0, color="k", lw=0.5)
         ax.legend(fontsize=8)
         paths.append(_save(f, out_dir, f"fig{fig:02d}_{names[0]}_force.png"))
@@ -85,8 +109,11 @@ def friction_curves(out_dir):
     for amp in (2e-5, 5e-5, 2e-4):
         x, _, F = _bristle_response(law, N, amp, 50.0)
         ax.plot(x * 1e3, F, label=f"X amplitude {amp * 1e3:g} mm")
-    ax.set(xlabel="relative displacement X [mm]", ylabel="Fnl [N]",
-           title="Fig. 15: Dahl force (pre-sliding hysteresis, N = 1 N)")
+    ax.set(
+        xlabel="relative displacement X [mm]",
+        ylabel="Fnl [N]",
+        title="Fig. 15: Dahl force (pre-sliding hysteresis, N = 1 N)",
+    )
     ax.legend(fontsize=8)
     paths.append(_save(f, out_dir, "fig15_dahl_force.png"))
     f, ax = plt.subplots(figsize=(6, 4))
@@ -96,8 +123,12 @@ def friction_curves(out_dir):
         ax.plot(vv, F, label=f"LuGre (v_s = 1e-2), X amplitude {amp * 1e3:g} mm")
     vs = jnp.linspace(-0.05, 0.05, 801)
     ax.plot(vs, law.steady_force(vs, N), "k--", lw=1, label="steady sliding g(v) sign(v) + σ2 v")
-    ax.set(xlabel="relative velocity Ẋ [m/s]", ylabel="Fnl [N]",
-           title="Fig. 16: LuGre force (N = 1 N)", ylim=(-0.8, 0.8))
+    ax.set(
+        xlabel="relative velocity Ẋ [m/s]",
+        ylabel="Fnl [N]",
+        title="Fig. 16: LuGre force (N = 1 N)",
+        ylim=(-0.8, 0.8),
+    )
     ax.legend(fontsize=8)
     paths.append(_save(f, out_dir, "fig16_lugre_force.png"))
     return paths
@@ -127,8 +158,9 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
     ramp = 3.0 if quick else presets.FRICTION_RAMP
     t_fri = ramp * 1.25
     jobs = [("impact", n) for n in presets.IMPACT_SCENES] + [
-        ("friction", n) for n in ("coulomb", "stribeck", "dahl", "lugre", "stribeck_physical",
-                                  "lugre_physical")]
+        ("friction", n)
+        for n in ("coulomb", "stribeck", "dahl", "lugre", "stribeck_physical", "lugre_physical")
+    ]
     trajs, timings, rows = {}, {}, []
     bar = tqdm(jobs, desc="paper scenes", disable=not progress)
     for kind, name in bar:
@@ -145,12 +177,20 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
         jax.block_until_ready(tr.ys)
         timings[name] = (time.perf_counter() - t) / t1
         trajs[name] = tr
-    summary = {"impact": {}, "friction": {}, "assumptions": {
-        "impact_gap_m": presets.IMPACT_GAP, "impact_eps_m": presets.IMPACT_EPS,
-        "friction_normal_force_N": presets.FRICTION_NORMAL_FORCE,
-        "friction_omega_rad_s": presets.FRICTION_OMEGA,
-        "friction_F0_final_N": presets.FRICTION_F0, "friction_ramp_s": ramp,
-        "friction_eps_m_s": presets.FRICTION_EPS}, "quick": quick}
+    summary = {
+        "impact": {},
+        "friction": {},
+        "assumptions": {
+            "impact_gap_m": presets.IMPACT_GAP,
+            "impact_eps_m": presets.IMPACT_EPS,
+            "friction_normal_force_N": presets.FRICTION_NORMAL_FORCE,
+            "friction_omega_rad_s": presets.FRICTION_OMEGA,
+            "friction_F0_final_N": presets.FRICTION_F0,
+            "friction_ramp_s": ramp,
+            "friction_eps_m_s": presets.FRICTION_EPS,
+        },
+        "quick": quick,
+    }
 
     # --- impact: Figs. 2, 4, 6, 7 ---
     figs = {"kelvin_voigt": 2, "hertz": 4, "hunt_crossley": 6}
@@ -161,17 +201,26 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
         T = float(tr.forcing.period)
         amp = _amplitude_window(ts, x1, ts[-1] - 10 * T, ts[-1])
         rel = _amplitude_window(ts, np.asarray(tr.relative), ts[-1] - 10 * T, ts[-1])
-        summary["impact"][name] = {"x1_amplitude_mm": amp * 1e3, "relative_amplitude_mm": rel * 1e3,
-                                   "seconds_per_simulated_second": timings[name],
-                                   "steps": int(tr.num_steps), "solver": tr.solver}
+        summary["impact"][name] = {
+            "x1_amplitude_mm": amp * 1e3,
+            "relative_amplitude_mm": rel * 1e3,
+            "seconds_per_simulated_second": timings[name],
+            "steps": int(tr.num_steps),
+            "solver": tr.solver,
+        }
         rows.append(["impact", name, amp * 1e3, rel * 1e3, "", timings[name], int(tr.num_steps)])
         f, ax = plt.subplots(figsize=(8, 4))
         ax.plot(ts, x1 * 1e3, lw=0.8)
-        ax.set(xlabel="t [s]", ylabel="x1 [mm]",
-               title=f"Fig. {figs[name]}: primary displacement, {IMPACT_LABELS[name]} collision")
+        ax.set(
+            xlabel="t [s]",
+            ylabel="x1 [mm]",
+            title=f"Fig. {figs[name]}: primary displacement, {IMPACT_LABELS[name]} collision",
+        )
         _save(f, out_dir, f"fig{figs[name]:02d}_{name}_x1.png")
         ax7.plot(ts, x1 * 1e3, lw=0.8, label=f"{IMPACT_LABELS[name]} ({amp * 1e3:.2f} mm)")
-    ax7.set(xlabel="t [s]", ylabel="x1 [mm]", title="Fig. 7: primary displacement, all collision models")
+    ax7.set(
+        xlabel="t [s]", ylabel="x1 [mm]", title="Fig. 7: primary displacement, all collision models"
+    )
     ax7.legend(fontsize=8)
     _save(f7, out_dir, "fig07_impact_all_x1.png")
 
@@ -183,14 +232,21 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
         reg = np.asarray(tr.regime)
         rms = float(np.sqrt(np.mean(x1**2)))
         end_amp = _amplitude_window(ts, x1, ts[-1] - 0.2 * ramp, ts[-1])
-        onset = {REGIME_NAMES[r]: (float(ts[np.argmax(reg == r)]) if (reg == r).any() else None)
-                 for r in range(3)}
-        summary["friction"][name] = {"x1_rms_mm": rms * 1e3, "x1_final_amplitude_mm": end_amp * 1e3,
-                                     "regime_onset_s": onset,
-                                     "seconds_per_simulated_second": timings[name],
-                                     "steps": int(tr.num_steps), "solver": tr.solver}
-        rows.append(["friction", name, end_amp * 1e3, "", rms * 1e3, timings[name],
-                     int(tr.num_steps)])
+        onset = {
+            REGIME_NAMES[r]: (float(ts[np.argmax(reg == r)]) if (reg == r).any() else None)
+            for r in range(3)
+        }
+        summary["friction"][name] = {
+            "x1_rms_mm": rms * 1e3,
+            "x1_final_amplitude_mm": end_amp * 1e3,
+            "regime_onset_s": onset,
+            "seconds_per_simulated_second": timings[name],
+            "steps": int(tr.num_steps),
+            "solver": tr.solver,
+        }
+        rows.append(
+            ["friction", name, end_amp * 1e3, "", rms * 1e3, timings[name], int(tr.num_steps)]
+        )
     pairs = (((11, 12, 13, 14), ("coulomb", "stribeck")), ((17, 18, 19, 20), ("dahl", "lugre")))
     for (fa, fb, fr, fx), names in pairs:
         for fig, name in zip((fa, fb), names):
@@ -199,9 +255,12 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
             f, ax = plt.subplots(figsize=(8, 4))
             _shade_regimes(ax, ts, np.asarray(tr.regime))
             ax.plot(ts, np.asarray(tr.x1) * 1e3, "k", lw=0.5, label="x1")
-            ax.set(xlabel="t [s]", ylabel="x1 [mm]",
-                   title=f"Fig. {fig}: primary displacement, {FRICTION_LABELS[name]} "
-                         f"(force ramps 0→{presets.FRICTION_F0:g} N)")
+            ax.set(
+                xlabel="t [s]",
+                ylabel="x1 [mm]",
+                title=f"Fig. {fig}: primary displacement, {FRICTION_LABELS[name]} "
+                f"(force ramps 0→{presets.FRICTION_F0:g} N)",
+            )
             ax.legend(fontsize=8, loc="upper left")
             _save(f, out_dir, f"fig{fig:02d}_{name}_x1.png")
         f, axs = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
@@ -228,18 +287,29 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
     a = {n: imp[n]["x1_amplitude_mm"] for n in imp}
     r = {n: fri[n]["x1_rms_mm"] for n in fri}
     summary["conclusions"] = {
-        "hunt_crossley_attenuates_more_than_linear_and_hertz":
-            bool(a["hunt_crossley"] < a["kelvin_voigt"] and a["hunt_crossley"] < a["hertz"]),
+        "hunt_crossley_attenuates_more_than_linear_and_hertz": bool(
+            a["hunt_crossley"] < a["kelvin_voigt"] and a["hunt_crossley"] < a["hertz"]
+        ),
         "stribeck_attenuates_more_than_coulomb": bool(r["stribeck"] < r["coulomb"]),
         "lugre_attenuates_more_than_dahl": bool(r["lugre"] < r["dahl"]),
-        "microscopic_vibrate_more_than_macroscopic":
-            bool(min(r["dahl"], r["lugre"]) > max(r["coulomb"], r["stribeck"])),
+        "microscopic_vibrate_more_than_macroscopic": bool(
+            min(r["dahl"], r["lugre"]) > max(r["coulomb"], r["stribeck"])
+        ),
     }
     with open(os.path.join(out_dir, "summary.json"), "w") as fh:
         json.dump(summary, fh, indent=2)
     with open(os.path.join(out_dir, "amplitudes.csv"), "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["kind", "scene", "x1_amplitude_mm", "relative_amplitude_mm", "x1_rms_mm",
-                    "seconds_per_simulated_second", "steps"])
+        w.writerow(
+            [
+                "kind",
+                "scene",
+                "x1_amplitude_mm",
+                "relative_amplitude_mm",
+                "x1_rms_mm",
+                "seconds_per_simulated_second",
+                "steps",
+            ]
+        )
         w.writerows(rows)
     return summary

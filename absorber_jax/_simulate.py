@@ -11,6 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._checks import check_scalar, check_state, check_time_grid, is_traced
+from ._custom_types import States, Times
+from ._custom_types import Status as StatusArray
 from ._forcing import AbstractForcing
 from ._status import Status, from_diffrax
 from ._system import AbstractAbsorberSystem, FrictionAbsorber
@@ -103,10 +105,10 @@ class Trajectory(eqx.Module):
     [J]; ``status`` (see :class:`Status`), ``num_steps`` and ``solver``.
     """
 
-    ts: jax.Array
-    ys: jax.Array
+    ts: Times
+    ys: States
     coupling_force: jax.Array
-    status: jax.Array
+    status: StatusArray
     num_steps: jax.Array
     system: AbstractAbsorberSystem
     forcing: AbstractForcing
@@ -177,35 +179,67 @@ def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, 
     if energy:
         s0 = jnp.concatenate([s0, jnp.zeros(2, s0.dtype)])
     sol = diffrax.diffeqsolve(
-        terms, solver, t0, t1, dt0, s0,
+        terms,
+        solver,
+        t0,
+        t1,
+        dt0,
+        s0,
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
-        max_steps=max_steps, throw=throw,
+        max_steps=max_steps,
+        throw=throw,
     )
     status = from_diffrax(sol.result)
     n = system.num_states
     s = sol.ys[:, :n]
-    status = jnp.where((status == Status.SUCCESS) & ~jnp.all(jnp.isfinite(s)), Status.NONFINITE,
-                       status)
+    status = jnp.where(
+        (status == Status.SUCCESS) & ~jnp.all(jnp.isfinite(s)), Status.NONFINITE, status
+    )
     acc = jax.vmap(lambda t, si: system.accelerations(t, si, forcing))(ts, s)
     a1, a2, fp, _ = acc
-    out = dict(ts=ts, ys=system.to_public(s), coupling_force=fp, status=status,
-               num_steps=sol.stats["num_steps"], system=system, forcing=forcing)
+    out = dict(
+        ts=ts,
+        ys=system.to_public(s),
+        coupling_force=fp,
+        status=status,
+        num_steps=sol.stats["num_steps"],
+        system=system,
+        forcing=forcing,
+    )
     if isinstance(system, FrictionAbsorber):
         fnl = jax.vmap(system.friction_force)(s[:, 2], s[:, 3], s[:, 4:])
         fa = system.m2 * (a1 - a2)
         tiny = 1e-12 * jnp.maximum(system.normal_force, 1e-300)
         sliding = jax.vmap(system.is_sliding)(s[:, 2], s[:, 3], s[:, 4:])
-        out.update(friction_force=fnl, force_ratio=jnp.abs(fa) / jnp.maximum(jnp.abs(fnl), tiny),
-                   sliding=sliding, regime=_regime(ts, sliding, forcing.period))
+        out.update(
+            friction_force=fnl,
+            force_ratio=jnp.abs(fa) / jnp.maximum(jnp.abs(fnl), tiny),
+            sliding=sliding,
+            regime=_regime(ts, sliding, forcing.period),
+        )
     if energy:
         out.update(work=sol.ys[:, n], dissipated=sol.ys[:, n + 1])
     return out
 
 
-def simulate(system: AbstractAbsorberSystem, forcing: AbstractForcing, t1, *, t0=0.0, ts=None,
-             y0=None, solver=None, rtol=1e-8, atol=1e-10, dt0=None, max_steps=1_000_000,
-             throw=True, energy=False, saves_per_period=40) -> Trajectory:
+def simulate(
+    system: AbstractAbsorberSystem,
+    forcing: AbstractForcing,
+    t1,
+    *,
+    t0=0.0,
+    ts=None,
+    y0=None,
+    solver=None,
+    rtol=1e-8,
+    atol=1e-10,
+    dt0=None,
+    max_steps=1_000_000,
+    throw=True,
+    energy=False,
+    saves_per_period=40,
+) -> Trajectory:
     """Integrate ``system`` under ``forcing`` from ``t0`` to ``t1`` [s] (float64, diffrax).
 
     **Arguments**
@@ -233,7 +267,9 @@ def simulate(system: AbstractAbsorberSystem, forcing: AbstractForcing, t1, *, t0
     ```
     """
     if not isinstance(system, AbstractAbsorberSystem):
-        raise ValueError(f"system must be an ImpactAbsorber or FrictionAbsorber, got {type(system).__name__}")
+        raise ValueError(
+            f"system must be an ImpactAbsorber or FrictionAbsorber, got {type(system).__name__}"
+        )
     if not isinstance(forcing, AbstractForcing):
         raise ValueError(f"forcing must be a forcing (e.g. Harmonic), got {type(forcing).__name__}")
     check_scalar("simulate", "t0", t0)
@@ -246,8 +282,12 @@ def simulate(system: AbstractAbsorberSystem, forcing: AbstractForcing, t1, *, t0
         check_scalar("simulate", "dt0", dt0, lo=0.0, lo_open=True)
     check_state("y0", y0, system.num_states)
     if ts is None:
-        n = int(min(max(1001, math.ceil((t1 - t0) / float(forcing.period) * saves_per_period) + 1),
-                    400_001))
+        n = int(
+            min(
+                max(1001, math.ceil((t1 - t0) / float(forcing.period) * saves_per_period) + 1),
+                400_001,
+            )
+        )
         ts = jnp.linspace(t0, t1, n)
     else:
         check_time_grid("ts", ts, t0=float(t0), t1=float(t1))
@@ -255,6 +295,19 @@ def simulate(system: AbstractAbsorberSystem, forcing: AbstractForcing, t1, *, t0
     name, solver_obj = _resolve_solver(solver, system, forcing)
     s0 = system.rest_state() if y0 is None else system.to_internal(jnp.asarray(y0, dtype=float))
     f = lambda x: jnp.asarray(x, dtype=float)
-    out = _solve(system, forcing, solver_obj, f(t0), f(t1), ts, s0, f(rtol), f(atol),
-                 None if dt0 is None else f(dt0), max_steps, bool(throw), bool(energy))
+    out = _solve(
+        system,
+        forcing,
+        solver_obj,
+        f(t0),
+        f(t1),
+        ts,
+        s0,
+        f(rtol),
+        f(atol),
+        None if dt0 is None else f(dt0),
+        max_steps,
+        bool(throw),
+        bool(energy),
+    )
     return Trajectory(**out, solver=name)

@@ -10,7 +10,8 @@ import jax.numpy as jnp
 
 
 def smooth_relu(x, eps):
-    r"""$\max(0, x) \approx \varepsilon\,\mathrm{softplus}(x/\varepsilon)$ (error $\le \varepsilon\ln 2$)."""
+    r"""$\max(0, x) \approx \varepsilon\,\mathrm{softplus}(x/\varepsilon)$, error at most
+    $\varepsilon\ln 2$."""
     return eps * jax.nn.softplus(x / eps)
 
 

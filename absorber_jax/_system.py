@@ -69,7 +69,9 @@ class AbstractAbsorberSystem(eqx.Module):
 
     def to_public(self, s):
         s = jnp.asarray(s)
-        ab = jnp.stack([s[..., 0], s[..., 1], s[..., 0] + s[..., 2], s[..., 1] + s[..., 3]], axis=-1)
+        ab = jnp.stack(
+            [s[..., 0], s[..., 1], s[..., 0] + s[..., 2], s[..., 1] + s[..., 3]], axis=-1
+        )
         return jnp.concatenate([ab, s[..., 4:]], axis=-1)
 
     def rest_state(self):
@@ -94,15 +96,20 @@ class AbstractAbsorberSystem(eqx.Module):
         M = self.primary[0]
         fp, zdot = self.coupling(s[2], s[3], s[4:])
         zero = jnp.zeros((), s.dtype)
-        return jnp.concatenate([jnp.stack([zero, fp / M, zero, -fp / self.absorber_mass - fp / M]),
-                                zdot])
+        return jnp.concatenate(
+            [jnp.stack([zero, fp / M, zero, -fp / self.absorber_mass - fp / M]), zdot]
+        )
 
     def mechanical_energy(self, s):
         """Kinetic + potential energy [J] of internal state ``s`` (exact contact potential)."""
         M, k, _ = self.primary
         v2 = s[1] + s[3]
-        return (0.5 * M * s[1] ** 2 + 0.5 * self.absorber_mass * v2**2 + 0.5 * k * s[0] ** 2
-                + self.coupling_potential(s[2], s[4:]))
+        return (
+            0.5 * M * s[1] ** 2
+            + 0.5 * self.absorber_mass * v2**2
+            + 0.5 * k * s[0] ** 2
+            + self.coupling_potential(s[2], s[4:])
+        )
 
     def power(self, t, s, forcing):
         """``(input power of the forcing, dissipated power)`` [W]."""
@@ -147,8 +154,10 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         positive("ImpactAbsorber", "m", self.m)
         nonnegative("ImpactAbsorber", "gap", self.gap)
         if not isinstance(self.contact, AbstractContactLaw):
-            raise ValueError("ImpactAbsorber.contact must be a contact law (KelvinVoigt, Hertz "
-                             f"or HuntCrossley), got {type(self.contact).__name__}")
+            raise ValueError(
+                "ImpactAbsorber.contact must be a contact law (KelvinVoigt, Hertz "
+                f"or HuntCrossley), got {type(self.contact).__name__}"
+            )
 
     @property
     def primary(self):
@@ -160,25 +169,31 @@ class ImpactAbsorber(AbstractAbsorberSystem):
 
     def walls(self, u, w):
         """``((f+, δ+, δ̇+), (f-, δ-, δ̇-))`` at the right and left walls."""
-        return (self.contact.wall_force(u - self.gap, w),
-                self.contact.wall_force(-u - self.gap, -w))
+        return (
+            self.contact.wall_force(u - self.gap, w),
+            self.contact.wall_force(-u - self.gap, -w),
+        )
 
     def coupling(self, u, w, z):
         (fr, _, _), (fl, _, _) = self.walls(u, w)
         return fr - fl, jnp.zeros((0,), dtype=jnp.result_type(u))
 
     def coupling_potential(self, u, z):
-        return (self.contact.potential(jnp.maximum(u - self.gap, 0.0))
-                + self.contact.potential(jnp.maximum(-u - self.gap, 0.0)))
+        return self.contact.potential(jnp.maximum(u - self.gap, 0.0)) + self.contact.potential(
+            jnp.maximum(-u - self.gap, 0.0)
+        )
 
     def coupling_dissipation(self, u, w, z):
-        return (self.contact.dissipated_power(u - self.gap, w)
-                + self.contact.dissipated_power(-u - self.gap, -w))
+        return self.contact.dissipated_power(u - self.gap, w) + self.contact.dissipated_power(
+            -u - self.gap, -w
+        )
 
     def stiffness_rate(self):
         meff = self.M * self.m / (self.M + self.m)
         structural = jnp.maximum(jnp.sqrt(self.k / self.M), self.c / self.M)
-        return jnp.maximum(structural, self.contact.stiffness_rate(meff, jnp.maximum(self.gap, 1e-3)))
+        return jnp.maximum(
+            structural, self.contact.stiffness_rate(meff, jnp.maximum(self.gap, 1e-3))
+        )
 
 
 class FrictionAbsorber(AbstractAbsorberSystem):
@@ -222,8 +237,10 @@ class FrictionAbsorber(AbstractAbsorberSystem):
         nonnegative("FrictionAbsorber", "c2", self.c2)
         nonnegative("FrictionAbsorber", "normal_force", self.normal_force)
         if not isinstance(self.friction, AbstractFrictionLaw):
-            raise ValueError("FrictionAbsorber.friction must be a friction law (Coulomb, "
-                             f"Stribeck, Dahl or LuGre), got {type(self.friction).__name__}")
+            raise ValueError(
+                "FrictionAbsorber.friction must be a friction law (Coulomb, "
+                f"Stribeck, Dahl or LuGre), got {type(self.friction).__name__}"
+            )
 
     @property
     def primary(self):
@@ -258,6 +275,5 @@ class FrictionAbsorber(AbstractAbsorberSystem):
 
     def stiffness_rate(self):
         meff = self.m1 * self.m2 / (self.m1 + self.m2)
-        structural = jnp.maximum(jnp.sqrt((self.k1 + self.k2) / meff),
-                                 (self.c1 + self.c2) / meff)
+        structural = jnp.maximum(jnp.sqrt((self.k1 + self.k2) / meff), (self.c1 + self.c2) / meff)
         return jnp.maximum(structural, self.friction.stiffness_rate(self.normal_force, meff))

@@ -15,8 +15,15 @@ def single_impact(law, v0, T=0.3):
     Returns (contact duration, restitution) read from the simulated trajectory."""
     system = aj.ImpactAbsorber(M=M, k=0.0, c=0.0, m=m, gap=GAP, contact=law)
     ts = np.linspace(0.0, T, 100001)
-    tr = aj.simulate(system, aj.Harmonic(amplitude=0.0, omega=1.0), T, ts=ts,
-                     y0=jnp.array([0.0, 0.0, GAP - 1e-4, v0]), rtol=1e-12, atol=1e-15)
+    tr = aj.simulate(
+        system,
+        aj.Harmonic(amplitude=0.0, omega=1.0),
+        T,
+        ts=ts,
+        y0=jnp.array([0.0, 0.0, GAP - 1e-4, v0]),
+        rtol=1e-12,
+        atol=1e-15,
+    )
     y = np.asarray(tr.relative)
     w = np.asarray(tr.v2 - tr.v1)
     inside = y > GAP
@@ -41,7 +48,9 @@ def test_kelvin_voigt_contact_time_and_restitution(c1):
     wd = np.sqrt(400.0 / meff - (c1 / (2 * meff)) ** 2)
     zeta = c1 / (2 * np.sqrt(400.0 * meff))
     np.testing.assert_allclose(t_c, np.pi / wd, rtol=1e-6)
-    np.testing.assert_allclose(e, np.exp(-zeta * np.pi / np.sqrt(1 - zeta**2)), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(
+        e, np.exp(-zeta * np.pi / np.sqrt(1 - zeta**2)), rtol=1e-5, atol=1e-7
+    )
     # the paper's T_Linear is the same closed form
     np.testing.assert_allclose(aj.linear_contact_time(400.0, c1, m, M), np.pi / wd, rtol=1e-12)
 
@@ -82,5 +91,6 @@ def test_paper_hunt_crossley_damping_only_holds_near_elastic_impacts():
 def test_hertz_stiffness_from_materials():
     # steel sphere R = 10 mm on steel: (4/3) E* sqrt(R), E* = E / (2 (1 - ν²))
     e_star = 210e9 / (2 * (1 - 0.3**2))
-    np.testing.assert_allclose(aj.hertz_stiffness(210e9, 0.3, 210e9, 0.3, 0.01),
-                               4 / 3 * e_star * 0.1, rtol=1e-12)
+    np.testing.assert_allclose(
+        aj.hertz_stiffness(210e9, 0.3, 210e9, 0.3, 0.01), 4 / 3 * e_star * 0.1, rtol=1e-12
+    )

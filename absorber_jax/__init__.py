@@ -22,8 +22,12 @@ from ._helpers import (  # noqa: E402
     linear_contact_time,
     linear_restitution,
 )
+from ._linear import linear_guess  # noqa: E402
+from ._params import get_param, parameter_names, replace_params  # noqa: E402
 from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._status import Status, describe  # noqa: E402
+from ._steady import SteadyState, steady_state  # noqa: E402
+from ._sweep import FrequencyResponse, frequency_response  # noqa: E402
 from ._system import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 
 __version__ = "0.1.0"
@@ -32,6 +36,8 @@ __all__ = [
     "AbstractAbsorberSystem", "AbstractContactLaw", "AbstractForcing", "AbstractFrictionLaw",
     "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
+    "FrequencyResponse", "SteadyState", "frequency_response", "get_param", "linear_guess",
+    "parameter_names", "replace_params", "steady_state",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",

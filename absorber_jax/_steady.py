@@ -1,0 +1,325 @@
+"""Periodic steady states: shooting with Floquet multipliers, and marching with a
+periodicity test.
+
+Both work on the *internal* state scaled to order one (positions by a length ``L``,
+velocities by ``Lω``) so that one tolerance means the same thing for every component.
+
+- **Shooting** solves ``Φ_{nT}(s) - s = 0`` for the period-``n`` map ``Φ`` with optimistix's
+  Levenberg–Marquardt least squares.  Where the absorber floats without touching the walls,
+  its position is arbitrary: the orbits form a family, ``∂Φ/∂s - I`` is singular (a double
+  Floquet multiplier at exactly 1) and plain Newton breaks down; the damped least-squares
+  step converges to the member of the family nearest the guess.  The monodromy matrix is
+  ``jax.jacfwd`` of ``Φ`` (diffrax ``ForwardMode``); its eigenvalues are the Floquet
+  multipliers.
+- **Marching** integrates forward in chunks of periods and samples the Poincaré section
+  ``t = kT``.  It stops when, for the smallest ``n <= n_max``, the samples repeat with period
+  ``n`` to within ``tol``, *and* the estimated distance to the limit (a geometric tail
+  ``d ρ/(1-ρ)`` from the observed contraction ``ρ``) is below ``tol`` too: slow transients
+  (a multiplier of 0.994 per period) are not mistaken for convergence.
+
+Amplitudes (over one full response period ``nT``, from ``SAMPLES_PER_ORBIT`` uniform samples
+refined by parabolic interpolation at the extremes): ``amplitude`` = half peak-to-peak of
+``x1``; ``rms`` = RMS of ``x1`` about zero; ``harmonic`` = magnitude of ``x1``'s component at
+the forcing frequency; ``absorber_amplitude`` and ``absorber_rms`` the same for the
+absorber's motion relative to the primary (``x2 - x1``).
+"""
+
+from __future__ import annotations
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import lineax as lx
+import optimistix as optx
+
+from ._forcing import Harmonic
+from ._linear import linear_guess
+from ._simulate import _resolve_solver
+from ._status import Status, from_diffrax
+from ._system import AbstractAbsorberSystem, ImpactAbsorber
+
+SAMPLES_PER_ORBIT = 1024
+
+
+class SteadyState(eqx.Module):
+    """A periodic response (see the module docstring for the definitions).
+
+    ``state``: public state ``[x1, v1, x2, v2, (z)]`` on the orbit at ``t = 0 mod nT``;
+    ``multipliers``: Floquet multipliers of the period-``nT`` map; ``stable``: all
+    ``|μ| <= 1 + 1e-6`` (a floating absorber's neutral multiplier 1 counts as stable);
+    ``impacting``/``sliding``: whether the coupling is active on the orbit;
+    ``status``: :class:`Status`; ``iterations``: Newton steps (shooting) or periods marched.
+    """
+
+    amplitude: jax.Array
+    rms: jax.Array
+    harmonic: jax.Array
+    absorber_amplitude: jax.Array
+    absorber_rms: jax.Array
+    period_multiple: jax.Array
+    state: jax.Array
+    multipliers: jax.Array
+    stable: jax.Array
+    status: jax.Array
+    residual: jax.Array
+    iterations: jax.Array
+
+    @property
+    def ok(self):
+        return self.status == Status.SUCCESS
+
+
+class _Config(eqx.Module):
+    solver: diffrax.AbstractSolver
+    rtol: float = eqx.field(static=True)
+    atol: float = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
+
+
+def state_scale(system, forcing):
+    """Per-component scale of the internal state: ``[L, Lω, L, Lω, L...]``."""
+    M, k, _ = system.primary
+    w = forcing.omega
+    L = forcing.amplitude / (k + M * w**2)
+    if isinstance(system, ImpactAbsorber):
+        L = jnp.maximum(L, system.gap)
+    L = jnp.maximum(L, 1e-12)
+    pos = jnp.ones(system.num_states).at[jnp.array([1, 3])].set(w)
+    return L * pos
+
+
+def _scaled_term(system, forcing, scale):
+    return diffrax.ODETerm(lambda t, x, a: system.vector_field(t, x * scale, forcing) / scale)
+
+
+def period_map(system, forcing, x0, n, cfg: _Config, t0=0.0):
+    """Scaled state after ``n`` forcing periods, and the integrator's status."""
+    scale = state_scale(system, forcing)
+    T = 2 * jnp.pi / forcing.omega
+    sol = diffrax.diffeqsolve(
+        _scaled_term(system, forcing, scale), cfg.solver, t0, t0 + n * T, None, x0,
+        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
+        max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
+    )
+    return sol.ys[-1], from_diffrax(sol.result)
+
+
+def _parabolic_peak(y, i):
+    """Extreme value of the periodic samples ``y`` near index ``i`` (parabola through 3)."""
+    n = y.shape[0]
+    a, b, c = y[(i - 1) % n], y[i], y[(i + 1) % n]
+    den = a - 2 * b + c
+    return b - 0.125 * (a - c) ** 2 / jnp.where(den == 0, 1.0, den) * (den != 0)
+
+
+def _half_p2p(y):
+    return 0.5 * (_parabolic_peak(y, jnp.argmax(y)) - _parabolic_peak(y, jnp.argmin(y)))
+
+
+def orbit_statistics(system, forcing, x0, n, cfg):
+    """Amplitudes over one response period ``nT`` starting from scaled state ``x0``."""
+    scale = state_scale(system, forcing)
+    T = 2 * jnp.pi / forcing.omega
+    N = SAMPLES_PER_ORBIT
+    ts = jnp.arange(N) * (n * T / N)
+    sol = diffrax.diffeqsolve(
+        _scaled_term(system, forcing, scale), cfg.solver, 0.0, n * T, None, x0,
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
+        max_steps=cfg.max_steps, throw=False,
+    )
+    s = sol.ys * scale
+    x1, u = s[:, 0], s[:, 2]
+    phase = jnp.exp(-1j * forcing.omega * ts)
+    harmonic = 2.0 * jnp.abs(jnp.mean(x1 * phase))
+    stats = dict(amplitude=_half_p2p(x1), rms=jnp.sqrt(jnp.mean(x1**2)), harmonic=harmonic,
+                 absorber_amplitude=_half_p2p(u), absorber_rms=jnp.sqrt(jnp.mean(u**2)))
+    return stats, from_diffrax(sol.result)
+
+
+def floquet(system, forcing, x0, n, cfg):
+    """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD)."""
+    J = jax.jacfwd(lambda x: period_map(system, forcing, x, n, cfg)[0])(x0)
+    return jnp.linalg.eigvals(J)
+
+
+def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True):
+    scale = state_scale(system, forcing)
+    stats, st2 = orbit_statistics(system, forcing, x, n, cfg)
+    if with_floquet:
+        mult = floquet(system, forcing, x, n, cfg)
+    else:
+        mult = jnp.full((system.num_states,), jnp.nan + 0j)
+    status = jnp.where(status == Status.SUCCESS, st2, status)
+    vals = jnp.stack([stats[k] for k in stats])
+    finite = jnp.all(jnp.isfinite(vals)) & jnp.all(jnp.isfinite(x))
+    status = jnp.where((status == Status.SUCCESS) & ~finite, Status.NONFINITE, status)
+    stable = jnp.all(jnp.abs(mult) <= 1.0 + 1e-6)
+    return SteadyState(**stats, period_multiple=jnp.asarray(n), state=system.to_public(x * scale),
+                       multipliers=mult, stable=stable, status=status, residual=residual,
+                       iterations=jnp.asarray(iterations))
+
+
+def _root_solver(name, tol):
+    if name == "newton":
+        # Newton with a minimum-norm (SVD) step: quadratic convergence, and the singular
+        # Jacobian of a floating absorber's orbit family is handled by the pseudo-inverse
+        return optx.Newton(rtol=tol, atol=tol, linear_solver=lx.SVD())
+    if name == "lm":
+        return optx.LevenbergMarquardt(rtol=tol, atol=tol)
+    raise ValueError(f"root solver must be 'newton' or 'lm', got {name!r}")
+
+
+def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_floquet=True,
+          root="newton"):
+    """Shooting from the scaled guess ``x_guess`` for a period-``n`` orbit."""
+
+    def residual(x, args):
+        xn, _ = period_map(system, forcing, x, n, cfg)
+        return xn - x
+
+    solver = _root_solver(root, 0.1 * tol)
+    if root == "newton":
+        sol = optx.root_find(residual, solver, x_guess, max_steps=newton_steps, throw=False)
+    else:
+        sol = optx.least_squares(residual, solver, x_guess, max_steps=newton_steps, throw=False)
+    x = sol.value
+    xn, st = period_map(system, forcing, x, n, cfg)
+    res = jnp.max(jnp.abs(xn - x))
+    status = jnp.where(st != Status.SUCCESS, st,
+                       jnp.where(res <= tol, Status.SUCCESS, Status.NO_CONVERGENCE))
+    return _finish(system, forcing, x, n, cfg, status, res, sol.stats["num_steps"], with_floquet)
+
+
+def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chunk=40,
+          with_floquet=True):
+    """March from scaled state ``x0`` until the Poincaré samples repeat with period ``n``."""
+    H = n_max + 2
+    nst = system.num_states
+    T = 2 * jnp.pi / forcing.omega
+    scale = state_scale(system, forcing)
+    term = _scaled_term(system, forcing, scale)
+    ns = jnp.arange(1, n_max + 1)
+
+    def distances(buf):
+        # d_n = max over the last two samples of |P_k - P_{k-n}|
+        last = buf[-1][None] - buf[-1 - ns]
+        prev = buf[-2][None] - buf[-2 - ns]
+        return jnp.maximum(jnp.max(jnp.abs(last), axis=1), jnp.max(jnp.abs(prev), axis=1))
+
+    def body(c):
+        t, x, buf, d_prev, k, _, _, _ = c
+        ts = t + T * jnp.arange(1, chunk + 1)
+        sol = diffrax.diffeqsolve(term, cfg.solver, t, ts[-1], None, x,
+                                  saveat=diffrax.SaveAt(ts=ts),
+                                  stepsize_controller=diffrax.PIDController(rtol=cfg.rtol,
+                                                                            atol=cfg.atol),
+                                  max_steps=cfg.max_steps, throw=False)
+        st = from_diffrax(sol.result)
+        buf = jnp.concatenate([buf, sol.ys])[-H:]
+        d = distances(buf)
+        # contraction per period from the change of d over this chunk, and the tail estimate
+        rho = jnp.clip((d / jnp.maximum(d_prev, 1e-300)) ** (1.0 / chunk), 0.0, 0.999999)
+        rho_n = rho**ns
+        tail = d * rho_n / (1 - rho_n)
+        ok = (d < tol) & (tail < tol) & (k > 0)
+        found = jnp.any(ok)
+        n = jnp.where(found, ns[jnp.argmax(ok)], 0)
+        return (ts[-1], sol.ys[-1], buf, d, k + 1, found, n, st)
+
+    def cond(c):
+        _, _, _, _, k, found, _, st = c
+        return (~found) & (k * chunk < max_periods) & (st == Status.SUCCESS)
+
+    buf0 = jnp.tile(x0[None], (H, 1)) + jnp.inf  # no history yet
+    c0 = (jnp.zeros(()), x0, buf0, jnp.full((n_max,), jnp.inf), jnp.zeros((), int),
+          jnp.zeros((), bool), jnp.zeros((), int), jnp.asarray(Status.SUCCESS))
+    t, x, buf, d, k, found, n, st = jax.lax.while_loop(cond, body, c0)
+    # restart the orbit at phase 0 (t is a multiple of T; the forcing is T-periodic)
+    periodic_like = jnp.min(d) < 1e3 * tol
+    status = jnp.where(st != Status.SUCCESS, st,
+                       jnp.where(found, Status.SUCCESS,
+                                 jnp.where(periodic_like, Status.NO_CONVERGENCE,
+                                           Status.NOT_PERIODIC)))
+    n_eff = jnp.where(found, n, 1)
+    res = jnp.where(found, d[n_eff - 1], jnp.min(d))
+    return _finish(system, forcing, x, n_eff, cfg, status, res, k * chunk, with_floquet)
+
+
+def _check(system, forcing):
+    if not isinstance(system, AbstractAbsorberSystem):
+        raise ValueError(f"system must be an ImpactAbsorber or FrictionAbsorber, got "
+                         f"{type(system).__name__}")
+    if not isinstance(forcing, Harmonic):
+        raise ValueError("steady_state needs a periodic forcing: forcing must be a Harmonic, "
+                         f"got {type(forcing).__name__}")
+
+
+def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000):
+    _, solver_obj = _resolve_solver(solver, system, forcing)
+    return _Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps))
+
+
+@eqx.filter_jit
+def _steady_jit(system, forcing, guess, cfg, method, n, n_max, tol, newton_steps,
+                max_periods, chunk, with_floquet, root):
+    scale = state_scale(system, forcing)
+    if guess is None:
+        x0 = linear_guess(system, forcing) / scale if method == "shooting" else \
+            system.rest_state() / scale
+    else:
+        x0 = system.to_internal(guess) / scale
+    if method == "shooting":
+        return shoot(system, forcing, x0, n, cfg, tol=tol, newton_steps=newton_steps,
+                     with_floquet=with_floquet, root=root)
+    return march(system, forcing, x0, cfg, n_max=n_max, tol=tol, max_periods=max_periods,
+                 chunk=chunk, with_floquet=with_floquet)
+
+
+def steady_state(system, forcing, *, method="shooting", n=1, guess=None, n_max=6, tol=None,
+                 solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000, newton_steps=40,
+                 max_periods=4000, chunk=40, floquet=True, root="newton") -> SteadyState:
+    """The periodic response of ``system`` under a :class:`Harmonic` ``forcing``.
+
+    **Arguments**
+
+    - ``method``: ``"shooting"`` (Levenberg–Marquardt on the period-``n`` map from ``guess``,
+      default the linear limit of the scene, see :func:`linear_guess`) or ``"marching"``
+      (integrate from ``guess``, default rest, until the Poincaré samples repeat with a
+      period ``n <= n_max``).
+    - ``n``: period multiple sought by shooting (1 = the forcing period).
+    - ``guess``: public state ``[x1, v1, x2, v2, (z)]`` at ``t = 0``.
+    - ``tol``: on the scaled state (shooting residual 1e-8, marching 1e-6 by default).
+    - ``solver``, ``rtol``, ``atol``, ``max_steps``: integrator settings (scaled state).
+    - ``newton_steps``; ``max_periods``, ``chunk`` (marching budget and Poincaré chunk).
+    - ``floquet``: compute the Floquet multipliers (one forward-mode Jacobian).
+    - ``root``: shooting's solver, ``"newton"`` (minimum-norm SVD steps) or ``"lm"``
+      (Levenberg–Marquardt).
+
+    **Returns** a :class:`SteadyState`; check ``status`` (0 = success).
+
+    ```python
+    import absorber_jax as aj
+    system, forcing = aj.presets.impact("kelvin_voigt", omega=60.0)
+    ss = aj.steady_state(system, forcing)
+    float(ss.amplitude), bool(ss.stable), ss.multipliers
+    ```
+    """
+    _check(system, forcing)
+    if method not in ("shooting", "marching"):
+        raise ValueError(f"method must be 'shooting' or 'marching', got {method!r}")
+    if not isinstance(n, int) or not 1 <= n <= 64:
+        raise ValueError(f"n must be an integer in [1, 64], got {n!r}")
+    if not isinstance(n_max, int) or not 1 <= n_max <= 64:
+        raise ValueError(f"n_max must be an integer in [1, 64], got {n_max!r}")
+    from ._checks import check_scalar, check_state
+
+    check_state("guess", guess, system.num_states)
+    tol = (1e-8 if method == "shooting" else 1e-6) if tol is None else tol
+    check_scalar("steady_state", "tol", tol, lo=0.0, lo_open=True)
+    cfg = make_config(system, forcing, solver, rtol, atol, max_steps)
+    g = None if guess is None else jnp.asarray(guess, dtype=float)
+    _root_solver(root, 1.0)
+    return _steady_jit(system, forcing, g, cfg, method, n, n_max, float(tol), int(newton_steps),
+                       int(max_periods), int(chunk), bool(floquet), root)

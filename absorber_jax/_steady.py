@@ -196,7 +196,6 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
           with_floquet=True):
     """March from scaled state ``x0`` until the Poincaré samples repeat with period ``n``."""
     H = n_max + 2
-    nst = system.num_states
     T = 2 * jnp.pi / forcing.omega
     scale = state_scale(system, forcing)
     term = _scaled_term(system, forcing, scale)

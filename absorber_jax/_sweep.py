@@ -211,7 +211,8 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
                 pv = np.concatenate([pv, np.repeat(pv[-1:], pad, axis=0)])
             w, pv = _place(jnp.asarray(w), ndev), _place(jnp.asarray(pv), ndev)
             res = _parallel_chunk(system, w, amp, pv, cfg, method, n, names, opts)
-            out.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[: size - pad], res))
+            keep = size - pad
+            out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:k], res))
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
         res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(order)) + a.shape[1:]), res)
     else:
@@ -227,7 +228,8 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
                 w = np.concatenate([w, np.repeat(w[-1:], pad)])
             carry, res = _sequential_chunk(system, jnp.asarray(w), amp, pv, carry, cfg, method,
                                            n, names, opts)
-            out.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:, : size - pad], res))
+            keep = size - pad
+            out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)
         if direction == "down":
             res = jax.tree_util.tree_map(lambda a: a[:, ::-1], res)

@@ -183,7 +183,7 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
 
     names, pvals = _check_params(system, params)
     P = pvals.shape[0]
-    tol = (1e-8 if method == "shooting" else 1e-6) if tol is None else float(tol)
+    tol = (1e-6 if method == "shooting" else 1e-5) if tol is None else float(tol)
     cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
     opts = (("tol", tol), ("newton_steps", int(newton_steps)), ("n_max", int(n_max)),
             ("max_periods", int(max_periods)), ("chunk", int(chunk)), ("floquet", bool(floquet)),

@@ -68,6 +68,59 @@ def cmd_simulate(args):
           f"(last 10 periods) {tr.amplitude() * 1e3:.4f} mm -> {args.out}")
 
 
+def _parse_range(text, what):
+    try:
+        lo, hi, n = text.split(":")
+        lo, hi, n = float(lo), float(hi), int(n)
+    except ValueError:
+        raise SystemExit(f"{what} expects LO:HI:N (e.g. 30:70:64), got {text!r}") from None
+    if not (0 < lo < hi) or n < 1:
+        raise ValueError(f"{what} must satisfy 0 < LO < HI and N >= 1, got {text!r}")
+    return lo, hi, n
+
+
+def cmd_sweep(args):
+    import json
+    import os
+    import time
+
+    import numpy as np
+
+    from . import presets
+    from ._params import with_params
+    from ._plots import plot_frequency_response
+    from ._sweep import frequency_response
+
+    lo, hi, n = _parse_range(args.omega, "--omega")
+    system, forcing = presets.scene(args.scene, **({"ramp_time": None}
+                                                   if args.scene in presets.FRICTION_SCENES
+                                                   else {}))
+    sets = _parse_sets(args.set)
+    if sets:
+        system = with_params(system, sets)
+    amplitude = args.amplitude if args.amplitude is not None else float(forcing.amplitude)
+    om = np.linspace(lo, hi, n)
+    t = time.perf_counter()
+    out = frequency_response(system, om, amplitude=amplitude, method=args.method,
+                             direction=args.direction, chunk_size=args.chunk, progress=True)
+    elapsed = time.perf_counter() - t
+    frfs = list(out) if isinstance(out, tuple) else [out]
+    for d in (os.path.dirname(os.path.abspath(p)) for p in [args.out] + [args.plot or args.out]):
+        os.makedirs(d, exist_ok=True)
+    if len(frfs) == 1:
+        frfs[0].to_csv(args.out)
+    else:
+        base, ext = os.path.splitext(args.out)
+        for f in frfs:
+            f.to_csv(f"{base}_{f.direction}{ext}")
+    if args.plot:
+        plot_frequency_response(frfs, args.plot,
+                                title=f"{args.scene}, F0 = {amplitude:g} N ({args.method})")
+    failed = sum(int((f.status != 0).sum()) for f in frfs)
+    print(json.dumps({"scene": args.scene, "points": n * len(frfs), "failed": failed,
+                      "seconds": round(elapsed, 3), "csv": args.out, "png": args.plot}))
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="absorber-jax",
                                 description="Impact and friction vibration absorbers in JAX")
@@ -84,6 +137,17 @@ def build_parser():
     s.add_argument("--out", default="trajectory.csv")
     s.add_argument("--plot", default=None)
     s.set_defaults(func=cmd_simulate)
+    w = sub.add_parser("sweep", help="steady-state frequency response, CSV and PNG")
+    w.add_argument("--scene", default="kelvin_voigt")
+    w.add_argument("--omega", default="30:70:64", help="LO:HI:N [rad/s]")
+    w.add_argument("--amplitude", type=float, default=None, help="F0 [N] (scene default)")
+    w.add_argument("--set", action="append", metavar="field=value")
+    w.add_argument("--method", default="shooting", choices=["shooting", "marching"])
+    w.add_argument("--direction", default="parallel", choices=["parallel", "up", "down", "both"])
+    w.add_argument("--chunk", type=int, default=64)
+    w.add_argument("--out", default="frf.csv")
+    w.add_argument("--plot", default="frf.png")
+    w.set_defaults(func=cmd_sweep)
     return p
 
 

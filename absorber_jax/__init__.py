@@ -11,6 +11,7 @@ _jax.config.update("jax_enable_x64", True)
 
 from . import presets  # noqa: E402
 from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
+from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
 from ._forcing import AbstractForcing, Harmonic, RampedHarmonic  # noqa: E402
 from ._friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
 from ._helpers import (  # noqa: E402
@@ -37,7 +38,8 @@ __all__ = [
     "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
     "FrequencyResponse", "SteadyState", "frequency_response", "get_param", "linear_guess",
-    "parameter_names", "replace_params", "steady_state",
+    "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
+    "band_objective", "smooth_max", "plot_tuning",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",

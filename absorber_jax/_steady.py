@@ -129,7 +129,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
         _scaled_term(system, forcing, scale), cfg.solver, 0.0, n * T, None, x0,
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
-        max_steps=cfg.max_steps, throw=False,
+        max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
     )
     s = sol.ys * scale
     x1, u = s[:, 0], s[:, 2]
@@ -143,7 +143,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
 def floquet(system, forcing, x0, n, cfg):
     """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD)."""
     J = jax.jacfwd(lambda x: period_map(system, forcing, x, n, cfg)[0])(x0)
-    return jnp.linalg.eigvals(J)
+    return jnp.linalg.eigvals(jax.lax.stop_gradient(J))
 
 
 def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
@@ -188,14 +188,21 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
     """Shooting from the scaled guess ``x_guess`` for a period-``n`` orbit."""
 
     def residual(x, args):
-        xn, _ = period_map(system, forcing, x, n, cfg)
+        sys_, forc_ = args
+        xn, _ = period_map(sys_, forc_, x, n, cfg)
         return xn - x
 
     solver = _root_solver(root, 0.1 * tol)
+    # gradients of the orbit by the implicit function theorem on the shooting residual
+    # (forward mode; the minimum-norm SVD solve copes with a floating absorber's null space)
+    adjoint = optx.ImplicitAdjoint(linear_solver=lx.SVD())
+    x_guess = jax.lax.stop_gradient(x_guess)
     if root == "newton":
-        sol = optx.root_find(residual, solver, x_guess, max_steps=newton_steps, throw=False)
+        sol = optx.root_find(residual, solver, x_guess, (system, forcing), max_steps=newton_steps,
+                             throw=False, adjoint=adjoint)
     else:
-        sol = optx.least_squares(residual, solver, x_guess, max_steps=newton_steps, throw=False)
+        sol = optx.least_squares(residual, solver, x_guess, (system, forcing),
+                                 max_steps=newton_steps, throw=False, adjoint=adjoint)
     x = sol.value
     xn, st = period_map(system, forcing, x, n, cfg)
     res = jnp.max(jnp.abs(xn - x))

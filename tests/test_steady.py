@@ -49,7 +49,8 @@ def test_zero_normal_force_friction_scene_matches_closed_form_frf():
     Mm = np.diag([1.0, 0.2])
     K = np.array([[1.18e4, -1.8e3], [-1.8e3, 1.8e3]])
     C = np.array([[7.0, -2.0], [-2.0, 2.0]])
-    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-np.linalg.solve(Mm, K), -np.linalg.solve(Mm, C)]])
+    A = np.block([[np.zeros((2, 2)), np.eye(2)],
+                  [-np.linalg.solve(Mm, K), -np.linalg.solve(Mm, C)]])
     expect = np.sort(np.abs(np.exp(np.linalg.eigvals(A) * T)))
     np.testing.assert_allclose(np.sort(np.abs(frf.multipliers[i])), expect, rtol=1e-6)
 
@@ -118,7 +119,8 @@ def den_hartog_amplitude(m, k, F, P, omega):
         A = -X - a * np.sin(phi) + F / k
         B = -a * omega * np.cos(phi) / wn
         x = A * np.cos(wn * Tn) + B * np.sin(wn * Tn) + a * np.sin(omega * Tn + phi) - F / k
-        v = -A * wn * np.sin(wn * Tn) + B * wn * np.cos(wn * Tn) + a * omega * np.cos(omega * Tn + phi)
+        v = (-A * wn * np.sin(wn * Tn) + B * wn * np.cos(wn * Tn)
+             + a * omega * np.cos(omega * Tn + phi))
         return [x - X, v]
 
     X0 = P / abs(k - m * omega**2)

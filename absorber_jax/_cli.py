@@ -121,6 +121,60 @@ def cmd_sweep(args):
                       "seconds": round(elapsed, 3), "csv": args.out, "png": args.plot}))
 
 
+def cmd_tune(args):
+    import csv
+    import json
+    import os
+
+    import numpy as np
+
+    from . import presets
+    from ._design import plot_tuning, tune
+    from ._params import with_params
+
+    lo, hi, _ = _parse_range(args.band + ":1", "--band")
+    system, forcing = presets.scene(args.scene, **({"ramp_time": None}
+                                                   if args.scene in presets.FRICTION_SCENES
+                                                   else {}))
+    sets = _parse_sets(args.set)
+    if sets:
+        system = with_params(system, sets)
+    bounds = {}
+    for item in args.bounds or []:
+        name, rng = item.split("=", 1)
+        b_lo, b_hi = (float(x) for x in rng.split(":"))
+        bounds[name.strip()] = (b_lo, b_hi)
+    amplitude = args.amplitude if args.amplitude is not None else float(forcing.amplitude)
+    params = [p.strip() for p in args.params.split(",") if p.strip()]
+    tuned, hist = tune(system, params, (lo, hi), amplitude=amplitude, objective=args.objective,
+                       steps=args.steps, n_freq=args.n_freq, bounds=bounds, progress=True,
+                       confirm=not args.no_confirm)
+    os.makedirs(args.out, exist_ok=True)
+    plot_tuning(system, tuned, hist, os.path.join(args.out, "tuning.png"),
+                title=f"{args.scene}: {', '.join(params)} over {lo:g}–{hi:g} rad/s")
+    with open(os.path.join(args.out, "curves.csv"), "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["omega", "amplitude_before", "amplitude_after"])
+        w.writerows(zip(hist["omegas"], hist["amplitude_before"], hist["amplitude_after"]))
+    summary = {"scene": args.scene, "params": params, "band": [lo, hi],
+               "objective": args.objective, "start": {k: v[0] for k, v in hist["params"].items()},
+               "tuned": hist["best"],
+               "peak_before_mm": float(np.max(hist["amplitude_before"]) * 1e3),
+               "peak_after_mm": float(np.max(hist["amplitude_after"]) * 1e3),
+               "history": {k: hist[k] for k in ("objective", "grad_norm", "failed", "nonsmooth",
+                                                "peak_bias")},
+               "history_params": hist["params"]}
+    if "confirm" in hist:
+        c = hist["confirm"]
+        summary["marching_check"] = {
+            "omegas": c["omegas"].tolist(), "before_mm": (c["before"] * 1e3).tolist(),
+            "after_mm": (c["after"] * 1e3).tolist(), "status_before": c["status_before"].tolist(),
+            "status_after": c["status_after"].tolist()}
+    with open(os.path.join(args.out, "tuning.json"), "w") as fh:
+        json.dump(summary, fh, indent=2)
+    print(json.dumps({k: summary[k] for k in ("tuned", "peak_before_mm", "peak_after_mm")}))
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="absorber-jax",
                                 description="Impact and friction vibration absorbers in JAX")
@@ -148,6 +202,19 @@ def build_parser():
     w.add_argument("--out", default="frf.csv")
     w.add_argument("--plot", default="frf.png")
     w.set_defaults(func=cmd_sweep)
+    t = sub.add_parser("tune", help="tune absorber parameters to minimise the band peak")
+    t.add_argument("--scene", default="kelvin_voigt")
+    t.add_argument("--params", required=True, help="comma-separated, e.g. k1,c1,m")
+    t.add_argument("--band", required=True, help="LO:HI [rad/s]")
+    t.add_argument("--amplitude", type=float, default=None)
+    t.add_argument("--objective", default="peak", choices=["peak", "mean_square", "amplitude"])
+    t.add_argument("--steps", type=int, default=40)
+    t.add_argument("--n-freq", type=int, default=32)
+    t.add_argument("--set", action="append", metavar="field=value")
+    t.add_argument("--bounds", action="append", metavar="name=LO:HI")
+    t.add_argument("--no-confirm", action="store_true", help="skip the marching check")
+    t.add_argument("--out", default="tuning")
+    t.set_defaults(func=cmd_tune)
     return p
 
 

@@ -47,7 +47,7 @@ _TRACES = {"tune_step": 0}
 def smooth_max(a, softness=2e-3):
     """``τ logsumexp(a/τ) - τ log F`` with ``τ = softness · max(a)`` (a smooth lower bound of
     ``max(a)``, within ``τ log F`` of it)."""
-    tau = softness * jax.lax.stop_gradient(jnp.max(a))
+    tau = softness * jnp.max(a)
     return tau * jax.nn.logsumexp(a / tau) - tau * jnp.log(a.shape[-1])
 
 

@@ -263,9 +263,8 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     hist["omegas"] = omegas
     hist["names"] = names
     hist["amplitude_before"] = amps_before
-    after, _, st_after, _ = band_amplitudes(tuned, om, amp,
-                                            jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64),
-                                            cfg, tol, newton_steps)
+    fresh = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
+    after, _, st_after, _ = band_amplitudes(tuned, om, amp, fresh, cfg, tol, newton_steps)
     hist["amplitude_after"] = np.asarray(after)
     hist["status_after"] = np.asarray(st_after)
     hist["best"] = {k: float(v) for k, v in zip(names, p_best)}

@@ -41,8 +41,8 @@ def main(out, quick):
     ax.plot(np.array(hist["params"]["gap"]) * 1e3, hist["params"]["c1"], "w.-", lw=0.8,
             label="gradient descent")
     ax.plot(hist["best"]["gap"] * 1e3, hist["best"]["c1"], "r*", ms=12, label="tuned")
-    ax.set(xscale="log", yscale="log", xlabel="clearance d [mm]", ylabel="contact damping c1 [N s/m]",
-           title="Table 1 impact absorber, 25–45 rad/s")
+    ax.set(xscale="log", yscale="log", xlabel="clearance d [mm]",
+           ylabel="contact damping c1 [N s/m]", title="Table 1 impact absorber, 25–45 rad/s")
     ax.legend()
     fig.tight_layout()
     fig.savefig(os.path.join(out, "impact_clearance_damping.png"), dpi=110)

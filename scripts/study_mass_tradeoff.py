@@ -49,8 +49,10 @@ def main(out, quick):
     fig, axs = plt.subplots(1, 2, figsize=(11, 4))
     mu = [r["mu"] for r in rows]
     axs[0].plot(mu, [r["tmd_peak_static"] for r in rows], "o-", label="tuned (absorber_jax)")
-    axs[0].plot(mu, [r["den_hartog_peak_static"] for r in rows], "k--", label="Den Hartog sqrt(1+2/μ)")
-    axs[0].set(xlabel="mass ratio μ", ylabel="peak |X1| k / F0", title="linear TMD, undamped primary")
+    axs[0].plot(mu, [r["den_hartog_peak_static"] for r in rows], "k--",
+                label="Den Hartog sqrt(1+2/μ)")
+    axs[0].set(xlabel="mass ratio μ", ylabel="peak |X1| k / F0",
+               title="linear TMD, undamped primary")
     axs[0].legend()
     axs[1].plot(mu, [r["impact_peak_before_mm"] for r in rows], "o-", color="0.5",
                 label="Table 1 contact (k1 = 400, c1 = 20)")

@@ -107,3 +107,14 @@ def isfinite_scalar(x) -> bool:
         return math.isfinite(float(x))
     except Exception:  # noqa: BLE001
         return False
+
+
+def require_x64(where: str):
+    """absorber_jax runs in float64 only: with JAX's x64 mode switched off (float32) the
+    smoothed contact laws lose their accuracy (a 1e-6 m smoothing length next to millimetre
+    displacements is below float32 resolution) and shooting cannot converge to its
+    tolerances, so we refuse rather than return degraded numbers."""
+    if not jax.config.jax_enable_x64:
+        raise ValueError(f"{where} needs float64: JAX's x64 mode is off (jax_enable_x64=False). "
+                         "Importing absorber_jax enables it; re-enable it with "
+                         "jax.config.update('jax_enable_x64', True)")

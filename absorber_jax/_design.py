@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._checks import check_scalar
+from ._checks import check_scalar, require_x64
 from ._forcing import Harmonic
 from ._linear import linear_guess
 from ._params import get_param, replace_params, resolve
@@ -184,6 +184,7 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     tuned, hist = aj.tune(system, ["k1", "c1"], (25.0, 45.0), amplitude=2.0, steps=30)
     ```
     """
+    require_x64("tune")
     import optax
     from tqdm.auto import tqdm
 

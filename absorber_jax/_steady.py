@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import lineax as lx
 import optimistix as optx
 
+from ._checks import check_scalar, check_state, require_x64
 from ._forcing import Harmonic
 from ._linear import linear_guess
 from ._simulate import _resolve_solver
@@ -341,6 +342,7 @@ def steady_state(system, forcing, *, method="shooting", n=1, guess=None, n_max=6
     float(ss.amplitude), bool(ss.stable), ss.multipliers
     ```
     """
+    require_x64("steady_state")
     _check(system, forcing)
     if method not in ("shooting", "marching"):
         raise ValueError(f"method must be 'shooting' or 'marching', got {method!r}")
@@ -348,7 +350,6 @@ def steady_state(system, forcing, *, method="shooting", n=1, guess=None, n_max=6
         raise ValueError(f"n must be an integer in [1, 64], got {n!r}")
     if not isinstance(n_max, int) or not 1 <= n_max <= 64:
         raise ValueError(f"n_max must be an integer in [1, 64], got {n_max!r}")
-    from ._checks import check_scalar, check_state
 
     check_state("guess", guess, system.num_states)
     tol = (1e-6 if method == "shooting" else 1e-5) if tol is None else tol

@@ -11,10 +11,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._checks import check_scalar, check_time_grid
+from ._checks import check_scalar, check_time_grid, require_x64
 from ._forcing import Harmonic
 from ._linear import linear_guess
 from ._params import replace_params, resolve
+from ._simulate import choose_solver
 from ._status import Status, describe
 from ._steady import make_config, march, shoot, state_scale
 from ._system import AbstractAbsorberSystem
@@ -158,6 +159,7 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
     frf.amplitude, frf.stable, frf.status
     ```
     """
+    require_x64("frequency_response")
     if not isinstance(system, AbstractAbsorberSystem):
         raise ValueError(f"system must be an ImpactAbsorber or FrictionAbsorber, got "
                          f"{type(system).__name__}")
@@ -184,6 +186,14 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
     names, pvals = _check_params(system, params)
     P = pvals.shape[0]
     tol = (1e-6 if method == "shooting" else 1e-5) if tol is None else float(tol)
+    if solver is None or solver == "auto":
+        # one solver serves the whole grid: implicit if any design is stiff at the lowest
+        # frequency (the longest period: the most explicit steps per period)
+        designs = pvals if P <= 256 else np.stack([pvals.min(0), pvals.max(0)])
+        f0 = _forcing(amplitude, float(om[0]))
+        stiff = any(choose_solver(replace_params(system, dict(zip(names, d))), f0) != "tsit5"
+                    for d in designs) if names else choose_solver(system, f0) != "tsit5"
+        solver = "kvaerno5" if stiff else "tsit5"
     cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
     opts = (("tol", tol), ("newton_steps", int(newton_steps)), ("n_max", int(n_max)),
             ("max_periods", int(max_periods)), ("chunk", int(chunk)), ("floquet", bool(floquet)),

@@ -26,9 +26,12 @@ def main(out, quick):
     Ns = np.geomspace(0.01, 200.0, 8 if quick else 30)
     grid = aj.frequency_response(base, om, amplitude=10.0, params={"N": Ns}, progress=True)
     peaks = np.where(np.all(grid.status == 0, axis=1), grid.amplitude.max(axis=1), np.nan)
-    tuned, hist = aj.tune(base, ["N"], band, amplitude=10.0, steps=10 if quick else 40,
-                          n_freq=len(om), bounds={"N": (0.01, 200.0)}, progress=True,
-                          confirm=False)
+    import optax
+
+    steps = 10 if quick else 120
+    tuned, hist = aj.tune(base, ["N"], band, amplitude=10.0, steps=steps, n_freq=len(om),
+                          bounds={"N": (0.01, 200.0)}, progress=True, confirm=False,
+                          optimizer=optax.adam(optax.cosine_decay_schedule(0.2, steps, 0.05)))
     n_opt = hist["best"]["N"]
     import matplotlib
 

@@ -174,3 +174,20 @@ def test_tune_bad_input():
         aj.tune(system, ["k1"], (40, 30), amplitude=2.0)
     with pytest.raises(ValueError, match="strictly inside bounds"):
         aj.tune(system, ["k1"], (30, 40), amplitude=2.0, bounds={"k1": (500.0, 900.0)})
+
+
+def test_gradients_stay_finite_through_grazing_and_stick_slip():
+    # 60 rad/s: the floating orbit's relative amplitude is 0.769 mm; sweep the clearance
+    # through it (impacting -> grazing -> floating)
+    system, _ = aj.presets.impact("kelvin_voigt")
+    for gap in (0.70e-3, 0.765e-3, 0.769e-3, 0.775e-3, 0.85e-3):
+        s = aj.replace_params(system, {"gap": gap})
+        val, g, status = aj.value_and_grad(s, ["gap", "c1"], [60.0], amplitude=2.0,
+                                           objective="amplitude")
+        assert status[0] == 0 and np.isfinite(val) and all(np.isfinite(v) for v in g.values())
+    # Coulomb: from nearly free sliding through stick-slip to sticking
+    fr = friction_system(aj.Coulomb(mu=0.5, eps=1e-3))
+    for N in (0.01, 0.5, 3.0, 20.0, 200.0):
+        val, g, status = aj.value_and_grad(aj.replace_params(fr, {"N": N}), ["N", "k2"], [95.0],
+                                           amplitude=10.0, objective="amplitude")
+        assert status[0] == 0 and np.isfinite(val) and all(np.isfinite(v) for v in g.values())

@@ -92,3 +92,27 @@ def test_max_steps_is_flagged_not_silent():
     assert "max_steps" in aj.describe(tr.status)
     with pytest.raises(Exception, match="maximum number of solver steps"):
         aj.simulate(system, forcing, 1.0, max_steps=50)
+
+
+def test_float32_is_refused_with_a_clear_error():
+    """absorber_jax is float64-only: with x64 switched off every entry point refuses."""
+    import subprocess
+    import sys
+
+    code = (
+        "import warnings; warnings.simplefilter('ignore')\n"
+        "import jax, numpy as np, absorber_jax as aj\n"
+        "s, f = aj.presets.impact('kelvin_voigt')\n"
+        "jax.config.update('jax_enable_x64', False)\n"
+        "for call in (lambda: aj.simulate(s, f, 0.1), lambda: aj.steady_state(s, f),\n"
+        "             lambda: aj.frequency_response(s, [40.0], amplitude=2.0),\n"
+        "             lambda: aj.tune(s, ['k1'], (30, 40), amplitude=2.0)):\n"
+        "    try:\n"
+        "        call(); print('NO ERROR')\n"
+        "    except ValueError as e:\n"
+        "        assert 'needs float64' in str(e), e\n"
+        "print('refused')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "NO ERROR" not in out.stdout and "refused" in out.stdout

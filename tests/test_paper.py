@@ -28,6 +28,40 @@ def test_reproduce_paper_quick(tmp_path):
         "stribeck_attenuates_more_than_coulomb", "lugre_attenuates_more_than_dahl",
         "microscopic_vibrate_more_than_macroscopic"}
     assert np.isfinite([r["x1_rms_mm"] for r in summary["friction"].values()]).all()
+    _compare_golden(summary)
+
+
+GOLDEN = os.path.join(os.path.dirname(__file__), "golden", "paper_quick.json")
+
+
+def _key_numbers(summary):
+    out = {}
+    for name, rec in summary["impact"].items():
+        marched = rec["steady_marching_from_rest"]
+        out[f"impact/{name}/x1_amplitude_mm"] = rec["x1_amplitude_mm"]
+        out[f"impact/{name}/steady_marching_mm"] = marched["x1_amplitude_mm"]
+        out[f"impact/{name}/steady_marching_period"] = marched["period_multiple"]
+        out[f"impact/{name}/steady_shooting_mm"] = rec["steady_shooting_period1"]["x1_amplitude_mm"]
+    for name, rec in summary["friction"].items():
+        out[f"friction/{name}/x1_rms_mm"] = rec["x1_rms_mm"]
+        out[f"friction/{name}/x1_final_amplitude_mm"] = rec["x1_final_amplitude_mm"]
+    return out
+
+
+def _compare_golden(summary):
+    """Golden-figure check: the key numbers of the (quick) paper reproduction against values
+    computed once and committed (tests/golden/paper_quick.json).  A change in the physics
+    moves them; regenerate deliberately with ABSORBER_JAX_WRITE_GOLDEN=1."""
+    now = _key_numbers(summary)
+    if os.environ.get("ABSORBER_JAX_WRITE_GOLDEN") == "1":
+        os.makedirs(os.path.dirname(GOLDEN), exist_ok=True)
+        with open(GOLDEN, "w") as fh:
+            json.dump(now, fh, indent=2, sort_keys=True)
+    with open(GOLDEN) as fh:
+        golden = json.load(fh)
+    assert set(golden) == set(now)
+    for k, v in golden.items():
+        np.testing.assert_allclose(now[k], v, rtol=1e-5, err_msg=k)
 
 
 def test_cli_simulate_writes_csv_and_png(tmp_path):

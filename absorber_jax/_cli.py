@@ -175,6 +175,21 @@ def cmd_tune(args):
     print(json.dumps({k: summary[k] for k in ("tuned", "peak_before_mm", "peak_after_mm")}))
 
 
+def cmd_work_precision(args):
+    import os
+    import runpy
+    import sys
+
+    script = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scripts",
+                          "work_precision.py")
+    if not os.path.exists(script):
+        raise ValueError("work-precision needs the repository checkout (scripts/ and tests/ "
+                         "with the event-exact references): install with `pip install -e .` "
+                         "from a clone")
+    sys.argv = [script, "--out", args.out] + (["--quick"] if args.quick else [])
+    runpy.run_path(script, run_name="__main__")
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="absorber-jax",
                                 description="Impact and friction vibration absorbers in JAX")
@@ -215,6 +230,10 @@ def build_parser():
     t.add_argument("--no-confirm", action="store_true", help="skip the marching check")
     t.add_argument("--out", default="tuning")
     t.set_defaults(func=cmd_tune)
+    wp = sub.add_parser("work-precision", help="error against run time for every law and solver")
+    wp.add_argument("--out", default="work_precision")
+    wp.add_argument("--quick", action="store_true")
+    wp.set_defaults(func=cmd_work_precision)
     return p
 
 

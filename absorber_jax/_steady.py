@@ -88,7 +88,13 @@ def state_scale(system, forcing):
         L = jnp.maximum(L, system.gap)
     L = jnp.maximum(L, 1e-12)
     pos = jnp.ones(system.num_states).at[jnp.array([1, 3])].set(w)
-    return L * pos
+    scale = L * pos
+    if system.num_law_states:
+        # bristle deflection: its natural size is the saturation value μc N / σ0
+        law = system.friction
+        z_scale = jnp.maximum(law.mu_c * system.normal_force / law.sigma0, 1e-15)
+        scale = scale.at[4:].set(z_scale)
+    return scale
 
 
 def _scaled_term(system, forcing, scale):
@@ -174,6 +180,19 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
                        iterations=jnp.asarray(iterations))
 
 
+@jax.custom_jvp
+def _finite_tangents(y):
+    return y
+
+
+@_finite_tangents.defjvp
+def _finite_tangents_jvp(primals, tangents):
+    # a non-finite tangent (an integration gone wrong at a trial Newton iterate) becomes 0, so
+    # the linear solve sees finite input; the iterate then fails to converge and is flagged
+    (y,), (dy,) = primals, tangents
+    return y, jnp.where(jnp.isfinite(dy), dy, 0.0)
+
+
 def _root_solver(name, tol):
     if name == "newton":
         # Newton with a minimum-norm (SVD) step: quadratic convergence, and the singular
@@ -190,8 +209,12 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
 
     def residual(x, args):
         sys_, forc_ = args
-        xn, _ = period_map(sys_, forc_, x, n, cfg)
-        return xn - x
+        xn, st = period_map(sys_, forc_, x, n, cfg)
+        # a failed integration (max_steps, non-finite state) must not reach the linear solver
+        # (lineax raises on NaN even with throw=False): give Newton a finite residual with a
+        # zero Jacobian instead; it stalls, and the status below flags the point
+        bad = (st != Status.SUCCESS) | ~jnp.all(jnp.isfinite(xn))
+        return _finite_tangents(jnp.where(bad, jnp.full_like(x, 1e6), xn - x))
 
     solver = _root_solver(root, 0.1 * tol)
     # gradients of the orbit by the implicit function theorem on the shooting residual

@@ -1,0 +1,73 @@
+"""Stiff and extreme cases: each returns finite states, amplitudes and gradients, or a clearly
+flagged failure; never a silent NaN, never a hang (every loop is bounded)."""
+
+import numpy as np
+import pytest
+
+import absorber_jax as aj
+
+
+def impact(law=None, **kw):
+    base = dict(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3,
+                contact=law or aj.KelvinVoigt(stiffness=400.0, damping=20.0))
+    base.update(kw)
+    return aj.ImpactAbsorber(**base)
+
+
+def friction(law, N=2.0):
+    return aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=1.0, k2=1e4, c2=0.0, normal_force=N,
+                               friction=law)
+
+
+HC = lambda e: aj.HuntCrossley(stiffness=3260.0, damping=aj.hunt_crossley_damping(3260.0, e, 0.1))
+
+# LuGre with sigma0 = 1e8 is not in this list: it is an open problem (issue 5). Shooting and
+# Floquet multipliers raise inside lineax (non-finite forward-mode tangents in Kvaerno5's
+# implicit stage solve), and a one-period simulation on Kvaerno5 ran over 10 minutes.
+CASES = {
+    "hertz_steel_1e10": (impact(aj.Hertz(stiffness=1e10, damping=20.0)), 2.0, 47.4, None),
+    "eps_1e-9": (impact(aj.KelvinVoigt(stiffness=400.0, damping=20.0, eps=1e-9)), 2.0, 47.4,
+                 None),
+    "force_1e4": (impact(), 1e4, 47.4, None),
+    "absorber_mass_1e-6": (impact(m=1e-6), 2.0, 47.4, None),
+    "zero_gap": (impact(gap=0.0), 2.0, 47.4, "k1"),
+    "normal_force_0": (friction(aj.Coulomb(mu=0.5), N=0.0), 10.0, 50.0, None),
+    "normal_force_stuck_1e6": (friction(aj.Coulomb(mu=0.5), N=1e6), 10.0, 50.0, None),
+    "stribeck_vs_1e-8": (friction(aj.Stribeck(mu_c=0.5, mu_s=0.6, v_s=1e-8)), 10.0, 50.0, None),
+    "hunt_crossley_e_0.01": (impact(HC(0.01)), 2.0, 47.4, None),
+    "hunt_crossley_e_0.999": (impact(HC(0.999)), 2.0, 47.4, "c1"),
+    "omega_0.5": (impact(), 2.0, 0.5, None),
+    "omega_1e4": (impact(), 2.0, 1e4, None),
+}
+
+OUTCOMES = {}
+
+
+def _finite_or_flagged(status, *values):
+    if int(status) == 0:
+        for v in values:
+            assert np.all(np.isfinite(np.asarray(v))), "status 0 but non-finite values"
+        return "ok"
+    return aj.describe(status)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_extreme_case(name):
+    system, F0, omega, grad_param = CASES[name]
+    forcing = aj.Harmonic(amplitude=F0, omega=omega)
+    T = 2 * np.pi / omega
+    tr = aj.simulate(system, forcing, 3 * T, throw=False, max_steps=300_000)
+    sim = _finite_or_flagged(tr.status, tr.ys)
+    ss = aj.steady_state(system, forcing, max_steps=300_000)
+    st = _finite_or_flagged(ss.status, ss.amplitude, ss.state)
+    out = dict(solver=tr.solver, simulate=sim, steady=st,
+               amplitude_mm=float(ss.amplitude) * 1e3 if st == "ok" else None)
+    if grad_param is not None:
+        val, g, status = aj.value_and_grad(system, [grad_param], [omega], amplitude=F0,
+                                           objective="amplitude")
+        out["gradient"] = _finite_or_flagged(status[0], val, list(g.values()))
+    OUTCOMES[name] = out
+    print(name, out)
+    # most extreme cases must actually be solved, not merely flagged
+    if name != "omega_0.5":
+        assert sim == "ok", (name, sim)

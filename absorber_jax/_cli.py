@@ -68,6 +68,17 @@ def cmd_simulate(args):
           f"(last 10 periods) {tr.amplitude() * 1e3:.4f} mm -> {args.out}")
 
 
+def _steady_scene(args):
+    """The scene named by ``--scene`` under a constant harmonic force, with ``--set`` applied."""
+    from . import presets
+    from ._params import with_params
+
+    kw = {"ramp_time": None} if args.scene in presets.FRICTION_SCENES else {}
+    system, forcing = presets.scene(args.scene, **kw)
+    sets = _parse_sets(args.set)
+    return (with_params(system, sets) if sets else system), forcing
+
+
 def _parse_range(text, what):
     try:
         lo, hi, n = text.split(":")
@@ -86,18 +97,11 @@ def cmd_sweep(args):
 
     import numpy as np
 
-    from . import presets
-    from ._params import with_params
     from ._plots import plot_frequency_response
     from ._sweep import frequency_response
 
     lo, hi, n = _parse_range(args.omega, "--omega")
-    system, forcing = presets.scene(args.scene, **({"ramp_time": None}
-                                                   if args.scene in presets.FRICTION_SCENES
-                                                   else {}))
-    sets = _parse_sets(args.set)
-    if sets:
-        system = with_params(system, sets)
+    system, forcing = _steady_scene(args)
     amplitude = args.amplitude if args.amplitude is not None else float(forcing.amplitude)
     om = np.linspace(lo, hi, n)
     t = time.perf_counter()
@@ -128,17 +132,10 @@ def cmd_tune(args):
 
     import numpy as np
 
-    from . import presets
     from ._design import plot_tuning, tune
-    from ._params import with_params
 
     lo, hi, _ = _parse_range(args.band + ":1", "--band")
-    system, forcing = presets.scene(args.scene, **({"ramp_time": None}
-                                                   if args.scene in presets.FRICTION_SCENES
-                                                   else {}))
-    sets = _parse_sets(args.set)
-    if sets:
-        system = with_params(system, sets)
+    system, forcing = _steady_scene(args)
     bounds = {}
     for item in args.bounds or []:
         name, rng = item.split("=", 1)

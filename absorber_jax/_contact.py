@@ -124,7 +124,19 @@ class KelvinVoigt(AbstractContactLaw):
         return 0.5 * self.stiffness * delta**2
 
 
-class Hertz(AbstractContactLaw):
+class _AbstractHertzian(AbstractContactLaw):
+    """Hertz elastic part ``kHz δ^{3/2}`` and its energy ``(2/5) kHz δ^{5/2}``."""
+
+    exponent: ClassVar[float] = 1.5
+
+    def elastic_force(self, delta):
+        return self.stiffness * delta**1.5
+
+    def potential(self, delta):
+        return 0.4 * self.stiffness * delta**2.5
+
+
+class Hertz(_AbstractHertzian):
     r"""Hertz elastic contact with linear viscous damping, the paper's *semi-linear* model
     (section 2.2, Table 2):
 
@@ -145,23 +157,17 @@ class Hertz(AbstractContactLaw):
     ```
     """
 
-    exponent: ClassVar[float] = 1.5
     stiffness: object = eqx.field(converter=as_float)
     damping: object = eqx.field(converter=as_float)
     eps: object = eqx.field(converter=as_float, default=1e-6)
     adhesive: bool = eqx.field(static=True, default=True)
 
-    def elastic_force(self, delta):
-        return self.stiffness * delta**1.5
-
     def viscous_force(self, delta, delta_dot):
         return self.damping * delta_dot
 
-    def potential(self, delta):
-        return 0.4 * self.stiffness * delta**2.5
 
 
-class HuntCrossley(AbstractContactLaw):
+class HuntCrossley(_AbstractHertzian):
     r"""Hunt–Crossley contact, the paper's *nonlinear* model (section 2.3, Table 3):
 
     $$f(δ, δ̇) = k_{Hz} δ^{3/2} + c_1 δ^{3/2} δ̇ .$$
@@ -182,20 +188,13 @@ class HuntCrossley(AbstractContactLaw):
     ```
     """
 
-    exponent: ClassVar[float] = 1.5
     stiffness: object = eqx.field(converter=as_float)
     damping: object = eqx.field(converter=as_float)
     eps: object = eqx.field(converter=as_float, default=1e-6)
     adhesive: bool = eqx.field(static=True, default=True)
 
-    def elastic_force(self, delta):
-        return self.stiffness * delta**1.5
-
     def viscous_force(self, delta, delta_dot):
         return self.damping * delta**1.5 * delta_dot
-
-    def potential(self, delta):
-        return 0.4 * self.stiffness * delta**2.5
 
 
 CONTACT_LAWS = {"kelvin_voigt": KelvinVoigt, "hertz": Hertz, "hunt_crossley": HuntCrossley}

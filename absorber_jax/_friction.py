@@ -16,7 +16,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from ._checks import as_float, check_scalar, nonnegative, positive
+from ._checks import as_float, check_scalar, is_traced, nonnegative, positive
 from ._smooth import smooth_abs, smooth_sign
 
 
@@ -127,7 +127,7 @@ class Stribeck(AbstractFrictionLaw):
     def __check_init__(self):
         nonnegative("Stribeck", "mu_c", self.mu_c)
         check_scalar(
-            "Stribeck", "mu_s", self.mu_s, lo=float(self.mu_c) if not _traced(self.mu_c) else None
+            "Stribeck", "mu_s", self.mu_s, lo=float(self.mu_c) if not is_traced(self.mu_c) else None
         )
         positive("Stribeck", "v_s", self.v_s)
         positive("Stribeck", "eps", self.eps)
@@ -148,12 +148,6 @@ class Stribeck(AbstractFrictionLaw):
 
     def stiffness_rate(self, normal_force, meff):
         return self.mu_s * normal_force / (self.eps * meff)
-
-
-def _traced(x):
-    from ._checks import is_traced
-
-    return is_traced(x)
 
 
 class Dahl(AbstractFrictionLaw):
@@ -254,7 +248,7 @@ class LuGre(AbstractFrictionLaw):
     def __check_init__(self):
         nonnegative("LuGre", "mu_c", self.mu_c)
         check_scalar(
-            "LuGre", "mu_s", self.mu_s, lo=float(self.mu_c) if not _traced(self.mu_c) else None
+            "LuGre", "mu_s", self.mu_s, lo=float(self.mu_c) if not is_traced(self.mu_c) else None
         )
         positive("LuGre", "v_s", self.v_s)
         positive("LuGre", "sigma0", self.sigma0)

@@ -11,6 +11,22 @@ from scipy.linalg import expm
 RTOL, ATOL = 1e-12, 1e-15
 
 
+def _collect(sol, t, t_end, t_eval, out_t, out_s):
+    """Keep the requested samples that fall in the segment [t, t_end] of a piecewise solve."""
+    sel = (t_eval >= t) & (t_eval <= t_end)
+    if sel.any():
+        out_t.append(t_eval[sel])
+        out_s.append(np.atleast_2d(sol.sol(t_eval[sel]).T))
+
+
+def _assemble(out_t, out_s):
+    """(x1, x2) at the requested times, segments joined (a shared end sample kept once)."""
+    ts = np.concatenate(out_t)
+    ys = np.concatenate(out_s)
+    _, idx = np.unique(ts, return_index=True)
+    return ys[idx, 0], ys[idx, 2]
+
+
 def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0)):
     """Piecewise-linear impact oscillator: free flight for |y| < d, the Kelvin–Voigt law
     (adhesive, as the paper's) at the wall being penetrated.  Returns x1, x2 at t_eval."""
@@ -48,10 +64,7 @@ def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0
         sol = solve_ivp(rhs(mode), (t, t1), s, method="DOP853", rtol=RTOL, atol=ATOL,
                         events=events[mode], dense_output=True)
         t_end = sol.t[-1]
-        sel = (t_eval >= t) & (t_eval <= t_end)
-        if sel.any():
-            out_t.append(t_eval[sel])
-            out_s.append(np.atleast_2d(sol.sol(t_eval[sel]).T))
+        _collect(sol, t, t_end, t_eval, out_t, out_s)
         if sol.status != 1:
             break
         s = sol.y[:, -1].copy()
@@ -60,10 +73,7 @@ def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0
         else:
             mode = 1 if sol.t_events[0].size else -1  # hit the right / left wall
         t = t_end
-    ts = np.concatenate(out_t)
-    ys = np.concatenate(out_s)
-    _, idx = np.unique(ts, return_index=True)
-    return ys[idx, 0], ys[idx, 2]
+    return _assemble(out_t, out_s)
 
 
 def friction_coulomb(m1, k1, c1, m2, k2, c2, mu, N, F0, omega, t_eval):
@@ -120,10 +130,7 @@ def friction_coulomb(m1, k1, c1, m2, k2, c2, mu, N, F0, omega, t_eval):
                         events=events[mode], dense_output=True)
         nudge = sol.t[-1] - t < 1e-12
         t_end = sol.t[-1]
-        sel = (t_eval >= t) & (t_eval <= t_end)
-        if sel.any():
-            out_t.append(t_eval[sel])
-            out_s.append(np.atleast_2d(sol.sol(t_eval[sel]).T))
+        _collect(sol, t, t_end, t_eval, out_t, out_s)
         if sol.status != 1:
             break
         s = sol.y[:, -1].copy()
@@ -134,10 +141,7 @@ def friction_coulomb(m1, k1, c1, m2, k2, c2, mu, N, F0, omega, t_eval):
             s[3] = s[1]  # exactly zero relative velocity
             mode = 0 if abs(fr) <= fmax else (1 if fr > 0 else -1)
         t = t_end
-    ts = np.concatenate(out_t)
-    ys = np.concatenate(out_s)
-    _, idx = np.unique(ts, return_index=True)
-    return ys[idx, 0], ys[idx, 2]
+    return _assemble(out_t, out_s)
 
 
 def linear_two_mass(Mmat, Cmat, Kmat, fvec, F0, omega, t_eval):

@@ -183,7 +183,8 @@ def cmd_work_precision(args):
         raise ValueError("work-precision needs the repository checkout (scripts/ and tests/ "
                          "with the event-exact references): install with `pip install -e .` "
                          "from a clone")
-    sys.argv = [script, "--out", args.out] + (["--quick"] if args.quick else [])
+    sys.argv = [script, "--out", args.out] + (["--quick"] if args.quick else []) + \
+        (["--resume"] if args.resume else [])
     runpy.run_path(script, run_name="__main__")
 
 
@@ -229,6 +230,8 @@ def build_parser():
     t.set_defaults(func=cmd_tune)
     wp = sub.add_parser("work-precision", help="error against run time for every law and solver")
     wp.add_argument("--out", default="work_precision")
+    wp.add_argument("--resume", action="store_true",
+                    help="reuse the per-scene results already written to --out")
     wp.add_argument("--quick", action="store_true")
     wp.set_defaults(func=cmd_work_precision)
     return p

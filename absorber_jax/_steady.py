@@ -97,20 +97,65 @@ def state_scale(system, forcing):
     return scale
 
 
-def _scaled_term(system, forcing, scale):
-    return diffrax.ODETerm(lambda t, x, a: system.vector_field(t, x * scale, forcing) / scale)
+def _scaled_rate(dyn, t, x):
+    system, forcing = dyn
+    scale = state_scale(system, forcing)
+    return system.vector_field(t, x * scale, forcing) / scale
+
+
+def _diffeqsolve(rate, x0, t0, t1, ts, cfg):
+    saveat = diffrax.SaveAt(t1=True) if ts is None else diffrax.SaveAt(ts=ts)
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(rate), cfg.solver, t0, t1, None, x0, saveat=saveat,
+        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
+        max_steps=cfg.max_steps, throw=False,
+    )
+    return sol.ys, from_diffrax(sol.result)
+
+
+@eqx.filter_custom_jvp
+def _flow(dyn, x0, t1, ts, *, cfg):
+    """Scaled states of ``dyn = (system, forcing)`` from ``x0`` at ``t = 0`` saved at ``ts``
+    (or at ``t1`` only when ``ts`` is None), and the integrator's status.
+
+    Its derivatives (in ``x0``, the system's and forcing's parameters and the times) are
+    the forward sensitivity equations ``δẋ = ∂f/∂x δx + ∂f/∂p δp``, integrated together with
+    the state by the same solver and tolerances, rather than derivatives of the solver's
+    internals: the error control then covers the sensitivities too, and no derivative ever
+    passes through an implicit solver's stage Newton solve (whose forward-mode derivative
+    raises inside lineax when a trial stage diverges, as on LuGre with sigma0 >= 1e6)."""
+    return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, 0.0, t1, ts, cfg)
+
+
+@_flow.def_jvp
+def _flow_jvp(primals, tangents, *, cfg):
+    dyn, x0, t1, ts = primals
+    t_dyn, t_x0, t_t1, t_ts = tangents
+    ys, status = _flow(dyn, x0, t1, ts, cfg=cfg)
+    t_x0 = jnp.zeros_like(x0) if t_x0 is None else t_x0
+
+    def augmented(t, y, a):
+        x, dx = y
+        return eqx.filter_jvp(lambda x_, d_: _scaled_rate(d_, t, x_), (x, dyn), (dx, t_dyn))
+
+    (_, dys), st2 = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg)
+    # moving save times (they depend on the forcing period): add the state's rate there
+    t_save, t_times = (t1[None], t_t1) if ts is None else (ts, t_ts)
+    if t_times is not None:
+        f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)
+        dys = dys + f * jnp.reshape(t_times, (-1, 1))
+    # a sensitivity integration that failed gives no derivative (the status flags the point)
+    dys = jnp.where((st2 == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
+    return (ys, status), (dys, None)
 
 
 def period_map(system, forcing, x0, n, cfg: _Config, t0=0.0):
-    """Scaled state after ``n`` forcing periods, and the integrator's status."""
-    scale = state_scale(system, forcing)
+    """Scaled state after ``n`` forcing periods from ``t = 0``, and the integrator's status
+    (``t0`` must be a multiple of the forcing period)."""
+    del t0
     T = 2 * jnp.pi / forcing.omega
-    sol = diffrax.diffeqsolve(
-        _scaled_term(system, forcing, scale), cfg.solver, t0, t0 + n * T, None, x0,
-        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
-        max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
-    )
-    return sol.ys[-1], from_diffrax(sol.result)
+    ys, status = _flow((system, forcing), x0, n * T, None, cfg=cfg)
+    return ys[-1], status
 
 
 def _parabolic_peak(y, i):
@@ -132,19 +177,14 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     T = 2 * jnp.pi / forcing.omega
     N = SAMPLES_PER_PERIOD * n_cap
     ts = jnp.arange(N) * (n * T / N)
-    sol = diffrax.diffeqsolve(
-        _scaled_term(system, forcing, scale), cfg.solver, 0.0, n * T, None, x0,
-        saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
-        max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
-    )
-    s = sol.ys * scale
+    ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg)
+    s = ys * scale
     x1, u = s[:, 0], s[:, 2]
     phase = jnp.exp(-1j * forcing.omega * ts)
     harmonic = 2.0 * jnp.abs(jnp.mean(x1 * phase))
     stats = dict(amplitude=_half_p2p(x1), rms=jnp.sqrt(jnp.mean(x1**2)), harmonic=harmonic,
                  absorber_amplitude=_half_p2p(u), absorber_rms=jnp.sqrt(jnp.mean(u**2)))
-    return stats, from_diffrax(sol.result), jnp.max(jnp.abs(u))
+    return stats, st, jnp.max(jnp.abs(u))
 
 
 def floquet(system, forcing, x0, n, cfg):
@@ -211,10 +251,12 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
         sys_, forc_ = args
         xn, st = period_map(sys_, forc_, x, n, cfg)
         # a failed integration (max_steps, non-finite state) must not reach the linear solver
-        # (lineax raises on NaN even with throw=False): give Newton a finite residual with a
-        # zero Jacobian instead; it stalls, and the status below flags the point
+        # (lineax raises on NaN even with throw=False): give Newton a zero residual with a
+        # zero Jacobian instead, so that it stops at once (a non-zero residual would make it
+        # repeat the same failing, possibly max_steps-long integration newton_steps times);
+        # the status below then flags the point
         bad = (st != Status.SUCCESS) | ~jnp.all(jnp.isfinite(xn))
-        return _finite_tangents(jnp.where(bad, jnp.full_like(x, 1e6), xn - x))
+        return _finite_tangents(jnp.where(bad, jnp.zeros_like(x), xn - x))
 
     solver = _root_solver(root, 0.1 * tol)
     # gradients of the orbit by the implicit function theorem on the shooting residual
@@ -241,8 +283,6 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
     """March from scaled state ``x0`` until the Poincaré samples repeat with period ``n``."""
     H = n_max + 2
     T = 2 * jnp.pi / forcing.omega
-    scale = state_scale(system, forcing)
-    term = _scaled_term(system, forcing, scale)
     ns = jnp.arange(1, n_max + 1)
 
     def distances(buf):
@@ -254,13 +294,9 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
     def body(c):
         t, x, buf, d_prev, d_prev2, k, _, _, _ = c
         ts = t + T * jnp.arange(1, chunk + 1)
-        sol = diffrax.diffeqsolve(term, cfg.solver, t, ts[-1], None, x,
-                                  saveat=diffrax.SaveAt(ts=ts),
-                                  stepsize_controller=diffrax.PIDController(rtol=cfg.rtol,
-                                                                            atol=cfg.atol),
-                                  max_steps=cfg.max_steps, throw=False)
-        st = from_diffrax(sol.result)
-        buf = jnp.concatenate([buf, sol.ys])[-H:]
+        ys, st = _diffeqsolve(lambda t_, x_, a: _scaled_rate((system, forcing), t_, x_), x,
+                              t, ts[-1], ts, cfg)
+        buf = jnp.concatenate([buf, ys])[-H:]
         d = distances(buf)
         # contraction per period, judged pessimistically over one and two chunks (the ratio
         # of one chunk is noisy once d nears the integration noise), and the tail estimate
@@ -280,7 +316,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
         divides = (n_found % ns) == 0
         near = divides & (d <= jnp.maximum(50 * d_n, 10 * tol))
         n = jnp.where(found, ns[jnp.argmax(near)], 0)
-        return (ts[-1], sol.ys[-1], buf, d, d_prev, k + 1, found, n, st)
+        return (ts[-1], ys[-1], buf, d, d_prev, k + 1, found, n, st)
 
     def cond(c):
         _, _, _, _, _, k, found, _, st = c

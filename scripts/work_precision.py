@@ -23,6 +23,7 @@ and ``work_precision.json`` to ``--out``.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import sys
@@ -33,6 +34,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import absorber_jax as aj
+
+DEFAULT_RTOL = inspect.signature(aj.simulate).parameters["rtol"].default
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
@@ -125,9 +128,12 @@ def rel_err(x, ref):
 
 
 def jax_run(system, forcing, solver, rtol):
+    """One simulate run (rtol None: simulate's own defaults), best of 2 after compilation."""
+    tol = {} if rtol is None else dict(rtol=rtol, atol=rtol * 1e-3)
+
     def go():
-        tr = aj.simulate(system, forcing, T1, ts=TS, solver=solver, rtol=rtol, atol=rtol * 1e-3,
-                         throw=False, max_steps=100_000 if solver == "kencarp4" else 400_000)
+        tr = aj.simulate(system, forcing, T1, ts=TS, solver=solver, **tol, throw=False,
+                         max_steps=100_000 if solver == "kencarp4" else 400_000)
         jax.block_until_ready(tr.ys)
         return tr
 
@@ -161,7 +167,7 @@ def reference(name, eps_list):
     return np.asarray(tr.x1), f"converged (eps = {min(eps_list):g})"
 
 
-def run(out, quick=False):
+def run(out, quick=False, resume=False):
     os.makedirs(out, exist_ok=True)
     tols = [1e-3, 1e-5, 1e-7, 1e-9] if quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9,
                                                    1e-10]
@@ -169,6 +175,12 @@ def run(out, quick=False):
     results = {}
     for name in scenes:
         kind = "impact" if name in aj.presets.IMPACT_SCENES else "friction"
+        cache = os.path.join(out, f"trajectory_{name}.json")
+        if resume and os.path.exists(cache):
+            with open(cache) as fh:
+                results[name] = json.load(fh)
+            print(f"== {name}: reused {cache}", flush=True)
+            continue
         print(f"== {name}", flush=True)
         system, forcing = scene(name)
         tight = aj.simulate(system, forcing, T1, ts=TS, solver="dopri8" if kind == "impact"
@@ -201,9 +213,9 @@ def run(out, quick=False):
             tr = aj.simulate(s, f, T1, ts=TS, solver="dopri8" if kind == "impact" else "kvaerno5",
                              rtol=1e-12, atol=1e-15, max_steps=2_000_000)
             smooth.append(dict(eps=eps, error=rel_err(tr.x1, ref)))
-        # the default settings, shown (not assumed)
-        x_def, t_def, steps_def, st_def = jax_run(system, forcing, None, 1e-8)
-        default = dict(solver=aj.choose_solver(system, forcing), rtol=1e-8,
+        # the default settings of simulate (solver, rtol, atol), shown (not assumed)
+        x_def, t_def, steps_def, st_def = jax_run(system, forcing, None, None)
+        default = dict(solver=aj.choose_solver(system, forcing), rtol=DEFAULT_RTOL,
                        eps=float(getattr(system, "contact", getattr(system, "friction", None)).eps),
                        seconds=t_def, steps=steps_def,
                        integration_error=None if x_def is None else rel_err(x_def, x_tight),
@@ -211,6 +223,8 @@ def run(out, quick=False):
                        reference=ref_kind)
         results[name] = dict(rows=rows, smoothing=smooth, reference=ref_kind, default=default)
         plot(name, results[name], os.path.join(out, f"work_precision_{name}.png"))
+        with open(cache, "w") as fh:
+            json.dump(results[name], fh, indent=1)
         print(json.dumps(default), flush=True)
     with open(os.path.join(out, "work_precision.json"), "w") as fh:
         json.dump(results, fh, indent=1)
@@ -286,5 +300,7 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="work_precision")
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--resume", action="store_true",
+                    help="reuse the per-scene results already written to --out")
     a = ap.parse_args()
-    run(a.out, a.quick)
+    run(a.out, a.quick, a.resume)

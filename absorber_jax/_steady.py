@@ -108,30 +108,43 @@ def _diffeqsolve(rate, x0, t0, t1, ts, cfg):
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(rate), cfg.solver, t0, t1, None, x0, saveat=saveat,
         stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
-        max_steps=cfg.max_steps, throw=False,
+        max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
     )
     return sol.ys, from_diffrax(sol.result)
 
 
-@eqx.filter_custom_jvp
 def _flow(dyn, x0, t1, ts, *, cfg):
     """Scaled states of ``dyn = (system, forcing)`` from ``x0`` at ``t = 0`` saved at ``ts``
-    (or at ``t1`` only when ``ts`` is None), and the integrator's status.
+    (or at ``t1`` only when ``ts`` is None), and the integrator's status; differentiable in
+    forward mode (shooting's Jacobian, Floquet multipliers, design gradients).
 
-    Its derivatives (in ``x0``, the system's and forcing's parameters and the times) are
-    the forward sensitivity equations ``δẋ = ∂f/∂x δx + ∂f/∂p δp``, integrated together with
-    the state by the same solver and tolerances, rather than derivatives of the solver's
-    internals: the error control then covers the sensitivities too, and no derivative ever
-    passes through an implicit solver's stage Newton solve (whose forward-mode derivative
-    raises inside lineax when a trial stage diverges, as on LuGre with sigma0 >= 1e6)."""
+    An explicit solver is differentiated through its steps (diffrax ``ForwardMode``: the
+    state is integrated once, its tangents ride along).  An implicit solver is not, see
+    :func:`_flow_sensitivity`."""
+    if isinstance(cfg.solver, diffrax.AbstractImplicitSolver):
+        return _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
     return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, 0.0, t1, ts, cfg)
 
 
-@_flow.def_jvp
-def _flow_jvp(primals, tangents, *, cfg):
+@eqx.filter_custom_jvp
+def _flow_sensitivity(dyn, x0, t1, ts, *, cfg):
+    """:func:`_flow` for implicit solvers.  Its derivatives (in ``x0``, the system's and
+    forcing's parameters and the times) are the forward sensitivity equations
+    ``δẋ = ∂f/∂x δx + ∂f/∂p δp``, integrated together with the state by the same solver and
+    tolerances, rather than derivatives of the solver's internals: the error control then
+    covers the sensitivities too, and no derivative ever passes through an implicit solver's
+    stage Newton solve (whose forward-mode derivative raises inside lineax when a trial
+    stage diverges, as on LuGre with sigma0 >= 1e6).  It costs about 4x the direct forward
+    mode (each tangent direction re-integrates the state), which is why explicit solvers
+    keep that."""
+    return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, 0.0, t1, ts, cfg)
+
+
+@_flow_sensitivity.def_jvp
+def _flow_sensitivity_jvp(primals, tangents, *, cfg):
     dyn, x0, t1, ts = primals
     t_dyn, t_x0, t_t1, t_ts = tangents
-    ys, status = _flow(dyn, x0, t1, ts, cfg=cfg)
+    ys, status = _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
     t_x0 = jnp.zeros_like(x0) if t_x0 is None else t_x0
 
     def augmented(t, y, a):

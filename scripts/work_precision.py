@@ -11,13 +11,16 @@ the absorber sticks and slips):
   limit: the event-exact solutions of ``tests/references.py`` for Kelvin–Voigt and Coulomb
   (an *exact* reference), and for the other laws a converged reference at the smallest eps
   (marked *converged*: it shows the self-convergence of the smoothing, not an exact error);
-- **steady-state amplitude**: shooting at the default settings against a tight solve.
+- **steady-state amplitude**: shooting (Tsit5, Dopri8, Kvaerno5 at rtol 1e-5 … 1e-11; scipy
+  fsolve on the solve_ivp period map with DOP853, LSODA, RK45, Radau) against a tight
+  shooting, plus the smoothing error of the amplitude and steady_state's defaults;
+- **extreme cases** (tests/test_extreme.py): Tsit5 against Kvaerno5, and the automatic choice.
 
 Errors are max |x1 - x1_ref| over 2001 samples, relative to max |x1_ref|.  Times are
 after compilation (best of 2).  Writes ``work_precision_<scene>.png``, ``work_precision.md``
-and ``work_precision.json`` to ``--out``.
+and ``work_precision.json`` to ``--out`` (plus per-part caches for ``--resume``).
 
-    python scripts/work_precision.py --out work_precision [--quick]
+    python scripts/work_precision.py --out work_precision [--quick] [--resume] [--part steady]
 """
 
 from __future__ import annotations
@@ -167,7 +170,7 @@ def reference(name, eps_list):
     return np.asarray(tr.x1), f"converged (eps = {min(eps_list):g})"
 
 
-def run(out, quick=False, resume=False):
+def run_trajectories(out, quick=False, resume=False):
     os.makedirs(out, exist_ok=True)
     tols = [1e-3, 1e-5, 1e-7, 1e-9] if quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9,
                                                    1e-10]
@@ -226,9 +229,160 @@ def run(out, quick=False, resume=False):
         with open(cache, "w") as fh:
             json.dump(results[name], fh, indent=1)
         print(json.dumps(default), flush=True)
+    return results
+
+
+def run(out, quick=False, resume=False, parts=("trajectories", "steady", "extreme")):
+    """The whole report; with ``resume``, parts and scenes already written are reused."""
+    os.makedirs(out, exist_ok=True)
+    allp = {}
+    for part, fn in (("trajectories", run_trajectories), ("steady", run_steady),
+                     ("extreme", run_extreme)):
+        if part in parts:
+            allp[part] = fn(out, quick, resume)
     with open(os.path.join(out, "work_precision.json"), "w") as fh:
+        json.dump(allp, fh, indent=1)
+    write_md(allp.get("trajectories", {}), os.path.join(out, "work_precision.md"),
+             allp.get("steady"), allp.get("extreme"))
+    return allp
+
+
+STEADY_SOLVERS = ["tsit5", "dopri8", "kvaerno5"]
+STEADY_TOLS = [1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11]
+
+
+def steady_amplitude(system, forcing, **kw):
+    def go():
+        ss = aj.steady_state(system, forcing, floquet=False, **kw)
+        jax.block_until_ready(ss.amplitude)
+        return ss
+
+    ss, t = timed(go, repeats=1)
+    ok = int(ss.status) == 0
+    return (float(ss.amplitude) if ok else None), t, int(ss.status)
+
+
+def scipy_shooting(system, forcing, method, rtol):
+    """Independent steady state: scipy fsolve on the solve_ivp period map (same smoothed
+    model, public coordinates), amplitude = half peak-to-peak of x1 over 2048 samples."""
+    from scipy.optimize import fsolve
+
+    f = numpy_rhs(system, forcing)
+    T = float(forcing.period)
+    from absorber_jax._steady import state_scale
+
+    # internal [x1, v1, u, w, z] scale -> public [x1, v1, x2, v2, z] (same magnitudes)
+    scale = np.asarray(state_scale(system, forcing))
+    x0 = np.asarray(system.to_public(aj.linear_guess(system, forcing)))
+
+    def pmap(y):
+        sol = solve_ivp(f, (0.0, T), y, method=method, rtol=rtol, atol=rtol * 1e-3)
+        return sol.y[:, -1]
+
+    t = time.perf_counter()
+    y, info, ier, _ = fsolve(lambda q: (pmap(q * scale) - q * scale) / scale, x0 / scale,
+                             full_output=True, xtol=1e-10)
+    y = y * scale
+    ts = np.linspace(0.0, T, 2049)
+    sol = solve_ivp(f, (0.0, T), y, method=method, t_eval=ts, rtol=rtol, atol=rtol * 1e-3)
+    dt = time.perf_counter() - t
+    x1 = sol.y[0]
+    return (0.5 * (x1.max() - x1.min()) if ier == 1 else None), dt, info["nfev"]
+
+
+def run_steady(out, quick=False, resume=False):
+    """Steady-state amplitude against run time: shooting at rtol 1e-5 ... 1e-11 for three
+    solvers, against a tight shooting (rtol 1e-12, tol 1e-10) of the same smoothed model;
+    the smoothing error of the amplitude against the smallest eps; scipy fsolve+solve_ivp
+    shooting side by side; and the default settings of steady_state, shown."""
+    results = {}
+    for name in (SCENES[:2] if quick else SCENES):
+        cache = os.path.join(out, f"steady_{name}.json")
+        if resume and os.path.exists(cache):
+            with open(cache) as fh:
+                results[name] = json.load(fh)
+            continue
+        kind = "impact" if name in aj.presets.IMPACT_SCENES else "friction"
+        print(f"== steady {name}", flush=True)
+        system, forcing = scene(name)
+        tight = dict(rtol=1e-12, atol=1e-12, tol=1e-10, max_steps=2_000_000,
+                     solver="dopri8" if kind == "impact" else "kvaerno5")
+        a_tight, t_tight, st = steady_amplitude(system, forcing, **tight)
+        rows = []
+        for solver in STEADY_SOLVERS:
+            for rtol in (STEADY_TOLS[::2] if quick else STEADY_TOLS):
+                a, t, status = steady_amplitude(system, forcing, solver=solver, rtol=rtol,
+                                                atol=rtol)
+                rows.append(dict(lib="absorber_jax", solver=solver, rtol=rtol, seconds=t,
+                                 status=status, amplitude=a,
+                                 error=None if a is None else abs(a - a_tight) / a_tight))
+        for method in ["DOP853", "LSODA"] + ([] if quick else ["RK45", "Radau"]):
+            for rtol in ([1e-6, 1e-9] if quick else [1e-6, 1e-8, 1e-10]):
+                a, t, nfev = scipy_shooting(system, forcing, method, rtol)
+                rows.append(dict(lib="scipy", solver=method, rtol=rtol, seconds=t, status=0
+                                 if a is not None else 2, amplitude=a, steps=int(nfev),
+                                 error=None if a is None else abs(a - a_tight) / a_tight))
+        eps_list = EPS[kind][:3] if quick else EPS[kind]
+        amps = []
+        for eps in eps_list:
+            s2, f2 = scene(name, eps)
+            amps.append(steady_amplitude(s2, f2, **tight)[0])
+        ref = amps[-1]
+        smooth = [dict(eps=e, amplitude=a, error=None if a is None or ref is None
+                       else abs(a - ref) / ref) for e, a in zip(eps_list, amps)]
+        a_def, t_def, st_def = steady_amplitude(system, forcing)
+        default = dict(solver=aj.choose_solver(system, forcing), rtol=1e-9, seconds=t_def,
+                       status=st_def, amplitude=a_def,
+                       integration_error=None if a_def is None else abs(a_def - a_tight)
+                       / a_tight,
+                       total_error=None if a_def is None or ref is None else
+                       abs(a_def - ref) / ref,
+                       reference=f"converged (eps = {min(eps_list):g}, rtol 1e-12)")
+        results[name] = dict(rows=rows, smoothing=smooth, tight=a_tight, default=default,
+                             omega=float(forcing.omega), amplitude_force=float(forcing.amplitude))
+        with open(cache, "w") as fh:
+            json.dump(results[name], fh, indent=1)
+        print(json.dumps(default), flush=True)
+    plot_steady(results, os.path.join(out, "work_precision_steady.png"))
+    return results
+
+
+def run_extreme(out, quick=False, resume=False):
+    """Explicit (Tsit5) against implicit (Kvaerno5) on the extreme cases of
+    tests/test_extreme.py: 3 forcing periods from rest, steps, time, status; the automatic
+    choice; and the steady state with the default budget."""
+    cache = os.path.join(out, "extreme.json")
+    if resume and os.path.exists(cache):
+        with open(cache) as fh:
+            return json.load(fh)
+    import test_extreme as X
+
+    results = {}
+    for name, (system, F0, omega, _) in X.CASES.items():
+        print(f"== extreme {name}", flush=True)
+        forcing = aj.Harmonic(amplitude=F0, omega=omega)
+        T = 2 * np.pi / omega
+        row = dict(auto=aj.choose_solver(system, forcing),
+                   rate_times_period=float(system.stiffness_rate()) * T)
+        for solver in ("tsit5", "kvaerno5"):
+            def go(system=system, forcing=forcing, T=T, solver=solver):
+                tr = aj.simulate(system, forcing, 3 * T, solver=solver, throw=False,
+                                 max_steps=100_000 if quick else 1_000_000)
+                jax.block_until_ready(tr.ys)
+                return tr
+
+            tr, t = timed(go, repeats=1)
+            row[solver] = dict(status=aj.describe(tr.status), steps=int(tr.num_steps),
+                               seconds=t, x1_max_mm=float(np.max(np.abs(tr.x1))) * 1e3
+                               if int(tr.status) == 0 else None)
+        t0 = time.perf_counter()
+        ss = aj.steady_state(system, forcing, **({"max_steps": 20_000} if quick else {}))
+        row["steady"] = dict(status=aj.describe(ss.status), seconds=time.perf_counter() - t0,
+                             amplitude_mm=float(ss.amplitude) * 1e3 if ss.ok else None)
+        print(json.dumps(row), flush=True)
+        results[name] = row
+    with open(cache, "w") as fh:
         json.dump(results, fh, indent=1)
-    write_md(results, os.path.join(out, "work_precision.md"))
     return results
 
 
@@ -262,7 +416,41 @@ def plot(name, res, path):
     plt.close(fig)
 
 
-def write_md(results, path):
+def plot_steady(results, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(results)
+    cols = min(n, 4)
+    rows_ = -(-n // cols)
+    fig, axs = plt.subplots(rows_, cols, figsize=(4 * cols, 3.6 * rows_), squeeze=False)
+    for ax, (name, res) in zip(axs.flat, results.items()):
+        for key in STEADY_SOLVERS + SCIPY_SOLVERS:
+            pts = [(r["seconds"], max(r["error"], 1e-16)) for r in res["rows"]
+                   if r["solver"] == key and r["error"] is not None]
+            if pts:
+                t, e = zip(*pts)
+                ax.loglog(t, e, marker="o" if key in STEADY_SOLVERS else "x",
+                          ls="-" if key in STEADY_SOLVERS else "--",
+                          label=("" if key in STEADY_SOLVERS else "scipy ") + key)
+        d = res["default"]
+        if d["integration_error"] is not None:
+            ax.loglog([d["seconds"]], [max(d["integration_error"], 1e-16)], "k*", ms=12,
+                      label="default")
+        ax.set(title=f"{name} ({res['omega']:g} rad/s)", xlabel="run time [s]",
+               ylabel="amplitude error (rel.)")
+        ax.legend(fontsize=6)
+    for ax in list(axs.flat)[n:]:
+        ax.axis("off")
+    fig.suptitle("Steady-state amplitude: error against run time (shooting)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def write_md(results, path, steady=None, extreme=None):
     lines = ["# Work-precision report", "",
              "Errors: max |x1 - ref| / max |ref| over 1 s (2001 samples). Integration error: "
              "against a tight solution (rtol 1e-12) of the same smoothed model. Smoothing "
@@ -291,6 +479,56 @@ def write_md(results, path):
     for name, r in results.items():
         lines.append(f"| {name} | {r['reference']} | " + ", ".join(
             f"{s['eps']:g}: {s['error']:.1e}" for s in r["smoothing"]) + " |")
+    fmt = lambda v: "—" if v is None else f"{v:.1e}"  # noqa: E731
+    if steady:
+        lines += ["", "## Steady-state amplitude (shooting)", "",
+                  "Amplitude of x1 (half peak-to-peak over one period) from `steady_state`, "
+                  "against a tight shooting (rtol 1e-12, tol 1e-10) of the same smoothed "
+                  "model (integration error), and against the tight solve at the smallest "
+                  "eps (total error; a *converged* reference, no event-exact periodic orbit "
+                  "is computed here). Times include the Newton iterations, not compilation.",
+                  "", "### Defaults of steady_state (rtol 1e-9, tol 1e-6), shown", "",
+                  "| scene | ω [rad/s] | solver | amplitude [mm] | time [s] | "
+                  "integration error | total error |", "|---|---|---|---|---|---|---|"]
+        for name, r in steady.items():
+            d = r["default"]
+            amp = "failed" if d["amplitude"] is None else f"{d['amplitude'] * 1e3:.5f}"
+            lines.append(f"| {name} | {r['omega']:g} | {d['solver']} | {amp} | "
+                         f"{d['seconds']:.2f} | {fmt(d['integration_error'])} | "
+                         f"{fmt(d['total_error'])} |")
+        keys = sorted({x["solver"] for r in steady.values() for x in r["rows"]},
+                      key=lambda k: (k not in STEADY_SOLVERS, k))
+        lines += ["", "### Fastest run reaching 1e-6 amplitude error", "",
+                  "| scene | " + " | ".join(keys) + " |", "|---|" + "---|" * len(keys)]
+        for name, r in steady.items():
+            cells = []
+            for key in keys:
+                ok = [x for x in r["rows"] if x["solver"] == key and x["error"] is not None
+                      and x["error"] <= 1e-6]
+                cells.append(f"{min(x['seconds'] for x in ok):.2f} s" if ok else "—")
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines += ["", "### Smoothing error of the amplitude", "", "| scene | eps: error |",
+                  "|---|---|"]
+        for name, r in steady.items():
+            lines.append(f"| {name} | " + ", ".join(
+                f"{x['eps']:g}: {fmt(x['error'])}" for x in r["smoothing"][:-1]) + " |")
+    if extreme:
+        lines += ["", "## Extreme cases: explicit against implicit", "",
+                  "3 forcing periods from rest with each solver (rtol 1e-8), and the steady "
+                  "state with the automatic choice.", "",
+                  "| case | λT | auto | Tsit5 steps / time | Kvaerno5 steps / time | "
+                  "steady state |", "|---|---|---|---|---|---|"]
+        for name, r in extreme.items():
+            def cell(c):
+                if c["status"] != aj.describe(0):
+                    return f"{c['status'].split(' (')[0]} ({c['steps']} steps, " \
+                           f"{c['seconds']:.1f} s)"
+                return f"{c['steps']} / {c['seconds']:.2f} s"
+            st = r["steady"]
+            ss = (f"{st['amplitude_mm']:.4g} mm" if st["amplitude_mm"] is not None
+                  else st["status"].split(" (")[0]) + f" ({st['seconds']:.1f} s)"
+            lines.append(f"| {name} | {r['rate_times_period']:.1e} | {r['auto']} | "
+                         f"{cell(r['tsit5'])} | {cell(r['kvaerno5'])} | {ss} |")
     lines.append("")
     with open(path, "w") as fh:
         fh.write("\n".join(lines))
@@ -302,5 +540,7 @@ if __name__ == "__main__":
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--resume", action="store_true",
                     help="reuse the per-scene results already written to --out")
+    ap.add_argument("--part", action="append", choices=["trajectories", "steady", "extreme"],
+                    help="run only this part (repeatable; default all)")
     a = ap.parse_args()
-    run(a.out, a.quick, a.resume)
+    run(a.out, a.quick, a.resume, tuple(a.part or ("trajectories", "steady", "extreme")))

@@ -103,11 +103,11 @@ def _scaled_rate(dyn, t, x):
     return system.vector_field(t, x * scale, forcing) / scale
 
 
-def _diffeqsolve(rate, x0, t0, t1, ts, cfg):
+def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
     saveat = diffrax.SaveAt(t1=True) if ts is None else diffrax.SaveAt(ts=ts)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(rate), cfg.solver, t0, t1, None, x0, saveat=saveat,
-        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol),
+        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol, norm=norm),
         max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
     )
     return sol.ys, from_diffrax(sol.result)
@@ -130,13 +130,12 @@ def _flow(dyn, x0, t1, ts, *, cfg):
 def _flow_sensitivity(dyn, x0, t1, ts, *, cfg):
     """:func:`_flow` for implicit solvers.  Its derivatives (in ``x0``, the system's and
     forcing's parameters and the times) are the forward sensitivity equations
-    ``δẋ = ∂f/∂x δx + ∂f/∂p δp``, integrated together with the state by the same solver and
-    tolerances, rather than derivatives of the solver's internals: the error control then
-    covers the sensitivities too, and no derivative ever passes through an implicit solver's
-    stage Newton solve (whose forward-mode derivative raises inside lineax when a trial
-    stage diverges, as on LuGre with sigma0 >= 1e6).  It costs about 4x the direct forward
-    mode (each tangent direction re-integrates the state), which is why explicit solvers
-    keep that."""
+    ``δẋ = ∂f/∂x δx + ∂f/∂p δp``, integrated together with the state by the same solver
+    (steps controlled on the state), rather than derivatives of the solver's internals: no
+    derivative ever passes through an implicit solver's stage Newton solve (whose
+    forward-mode derivative raises inside lineax when a trial stage diverges, as on LuGre
+    with sigma0 >= 1e6).  Explicit solvers keep diffrax's ``ForwardMode``, which integrates
+    the state once for all tangent directions."""
     return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, 0.0, t1, ts, cfg)
 
 
@@ -149,9 +148,17 @@ def _flow_sensitivity_jvp(primals, tangents, *, cfg):
 
     def augmented(t, y, a):
         x, dx = y
-        return eqx.filter_jvp(lambda x_, d_: _scaled_rate(d_, t, x_), (x, dyn), (dx, t_dyn))
+        # the sensitivity rate is linear in dx; its dependence on x is hidden from the
+        # implicit solver's Jacobian (stop_gradient), which is then block-diagonal: the
+        # second derivatives of the contact law (singular for Hertz at first contact) would
+        # otherwise stall the stage Newton iterations
+        _, df = eqx.filter_jvp(lambda x_, d_: _scaled_rate(d_, t, x_),
+                               (jax.lax.stop_gradient(x), dyn), (dx, t_dyn))
+        return _scaled_rate(dyn, t, x), df
 
-    (_, dys), st2 = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg)
+    # steps controlled on the state only: the sensitivities ride along, as in forward mode
+    (_, dys), st2 = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg,
+                                 norm=lambda e: optx.rms_norm(e[0]))
     # moving save times (they depend on the forcing period): add the state's rate there
     t_save, t_times = (t1[None], t_t1) if ts is None else (ts, t_ts)
     if t_times is not None:

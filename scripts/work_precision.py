@@ -228,6 +228,7 @@ def run_trajectories(out, quick=False, resume=False):
         plot(name, results[name], os.path.join(out, f"work_precision_{name}.png"))
         with open(cache, "w") as fh:
             json.dump(results[name], fh, indent=1)
+        jax.clear_caches()  # one compile per (solver, rtol): free them per scene
         print(json.dumps(default), flush=True)
     return results
 
@@ -345,6 +346,7 @@ def run_steady(out, quick=False, resume=False):
                              omega=float(forcing.omega), amplitude_force=float(forcing.amplitude))
         with open(cache, "w") as fh:
             json.dump(results[name], fh, indent=1)
+        jax.clear_caches()  # one compile per (solver, rtol): free them per scene
         print(json.dumps(default), flush=True)
     plot_steady(results, os.path.join(out, "work_precision_steady.png"))
     return results
@@ -384,6 +386,7 @@ def run_extreme(out, quick=False, resume=False):
                              amplitude_mm=float(ss.amplitude) * 1e3 if ss.ok else None)
         print(json.dumps(row), flush=True)
         results[name] = row
+        jax.clear_caches()  # one compile per (solver, rtol): free them per scene
     with open(cache, "w") as fh:
         json.dump(results, fh, indent=1)
     return results

@@ -143,7 +143,6 @@ def _flow_sensitivity(dyn, x0, t1, ts, *, cfg):
 def _flow_sensitivity_jvp(primals, tangents, *, cfg):
     dyn, x0, t1, ts = primals
     t_dyn, t_x0, t_t1, t_ts = tangents
-    ys, status = _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
     t_x0 = jnp.zeros_like(x0) if t_x0 is None else t_x0
 
     def augmented(t, y, a):
@@ -156,8 +155,9 @@ def _flow_sensitivity_jvp(primals, tangents, *, cfg):
                                (jax.lax.stop_gradient(x), dyn), (dx, t_dyn))
         return _scaled_rate(dyn, t, x), df
 
-    # steps controlled on the state only: the sensitivities ride along, as in forward mode
-    (_, dys), st2 = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg,
+    # steps controlled on the state only: the sensitivities ride along, as in forward mode;
+    # the state integrated here is the primal output (no separate state-only solve)
+    (ys, dys), status = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg,
                                  norm=lambda e: optx.rms_norm(e[0]))
     # moving save times (they depend on the forcing period): add the state's rate there
     t_save, t_times = (t1[None], t_t1) if ts is None else (ts, t_ts)
@@ -165,7 +165,7 @@ def _flow_sensitivity_jvp(primals, tangents, *, cfg):
         f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)
         dys = dys + f * jnp.reshape(t_times, (-1, 1))
     # a sensitivity integration that failed gives no derivative (the status flags the point)
-    dys = jnp.where((st2 == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
+    dys = jnp.where((status == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
     return (ys, status), (dys, None)
 
 

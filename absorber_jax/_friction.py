@@ -28,6 +28,9 @@ class AbstractFrictionLaw(eqx.Module):
     """
 
     num_states: ClassVar[int] = 0
+    # True: the law is the nonsmooth eps -> 0 limit, integrated by switching between stick
+    # and slip at events (see absorber_jax._stickslip)
+    exact: eqx.AbstractVar[bool]
 
     @abc.abstractmethod
     def force(self, v, z, normal_force):
@@ -62,6 +65,15 @@ class AbstractFrictionLaw(eqx.Module):
     def initial_state(self):
         return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
 
+    # -- exact (event-driven) stick–slip: memoryless laws only ------------------------
+    def breakaway_force(self, normal_force):
+        """Largest friction force [N] the contact holds while stuck (``μs N``)."""
+        raise NotImplementedError(f"{type(self).__name__} has no exact stick–slip mode")
+
+    def kinetic_force(self, speed, normal_force):
+        """Friction force magnitude [N] while slipping at ``speed = |Ẋ| >= 0``."""
+        raise NotImplementedError(f"{type(self).__name__} has no exact stick–slip mode")
+
 
 # Sliding speed [m/s] at which the bristle relaxation rate σ0|v|/F is taken for the automatic
 # solver choice.  Calibrated by measurement (scripts/work_precision.py, LuGre σ1 = 1e2, N = 2,
@@ -69,6 +81,21 @@ class AbstractFrictionLaw(eqx.Module):
 # 102 s; 3 periods: 55k against 12k steps, 0.21 s against 0.30 s) and fails to converge at
 # σ0 = 1e8, where Kvaerno5 succeeds; at 5 mm/s the switch falls between the two.
 BRISTLE_SLIDING_SPEED = 5e-3
+
+
+# smoothing length [m/s] of Coulomb and Stribeck when they are asked to smooth without one
+DEFAULT_EPS = 1e-4
+
+
+def _exact_and_eps(eps, exact):
+    """The default of the memoryless laws is the exact (event-driven) law; giving ``eps``
+    asks for the tanh-smoothed law instead (``exact=False, eps=None`` smooths with
+    ``DEFAULT_EPS``)."""
+    if exact is None:
+        exact = eps is None
+    if not isinstance(exact, bool):
+        raise ValueError(f"exact must be True or False, got {exact!r}")
+    return exact, (DEFAULT_EPS if eps is None else eps)
 
 
 class Coulomb(AbstractFrictionLaw):
@@ -79,33 +106,53 @@ class Coulomb(AbstractFrictionLaw):
     **Arguments**
 
     - ``mu``: friction coefficient $\mu_c$ [-] (Table 4: 0.5).
-    - ``eps``: velocity smoothing [m/s]. The smoothed law converges like ``eps`` to the
-      event-exact stick–slip solution; small ``eps`` makes the scene stiff.
+    - ``eps``: give it to smooth ``sign`` as ``tanh(Ẋ/eps)`` [m/s]. The smoothed law
+      converges like ``eps`` to the exact one; small ``eps`` makes the scene stiff, and a
+      fixed ``eps`` makes results depend on the scale of the motion.
+    - ``exact``: default ``True`` when no ``eps`` is given: the nonsmooth law itself, with
+      stick and slip segments switched at events, exact to the integrator's tolerance and
+      independent of the scale of the motion, with derivatives through the event times
+      (:mod:`absorber_jax._stickslip`).
 
     ```python
-    law = Coulomb(mu=0.5)
-    law.force(1.0, None, 10.0)   # 0.5 * 10 = 5 N (sliding forwards)
+    law = Coulomb(mu=0.5)            # exact stick–slip
+    law.force(1.0, None, 10.0)       # 0.5 * 10 = 5 N (sliding forwards)
+    Coulomb(mu=0.5, eps=1e-4)        # tanh-smoothed, eps = 1e-4 m/s
     ```
     """
 
     mu: object = eqx.field(converter=as_float)
-    eps: object = eqx.field(converter=as_float, default=1e-4)
+    eps: object = eqx.field(converter=as_float)
+    exact: bool = eqx.field(static=True)
+
+    def __init__(self, mu, eps=None, exact=None):
+        self.mu = mu
+        self.exact, self.eps = _exact_and_eps(eps, exact)
 
     def __check_init__(self):
         nonnegative("Coulomb", "mu", self.mu)
         positive("Coulomb", "eps", self.eps)
 
     def force(self, v, z, normal_force):
-        return self.mu * normal_force * smooth_sign(v, self.eps)
+        sgn = jnp.sign(v) if self.exact else smooth_sign(v, self.eps)
+        return self.mu * normal_force * sgn
 
     def steady_force(self, v, normal_force):
         return self.force(v, None, normal_force)
 
     def is_sliding(self, v, z, normal_force):
-        return jnp.abs(v) > 10.0 * self.eps
+        return jnp.abs(v) > (0.0 if self.exact else 10.0 * self.eps)
 
     def stiffness_rate(self, normal_force, meff):
+        if self.exact:  # no smoothing layer: only the structure's own rates remain
+            return jnp.zeros(())
         return self.mu * normal_force / (self.eps * meff)
+
+    def breakaway_force(self, normal_force):
+        return self.mu * normal_force
+
+    def kinetic_force(self, speed, normal_force):
+        return self.mu * normal_force * jnp.ones_like(speed)
 
 
 class Stribeck(AbstractFrictionLaw):
@@ -119,7 +166,8 @@ class Stribeck(AbstractFrictionLaw):
       0.6).
     - ``v_s``: Stribeck velocity [m/s] (Table 4 prints 1e4, which makes the exponential 1
       for any realistic speed, i.e. Coulomb with ``mu_s``; a physical value is ~1e-2).
-    - ``eps``: velocity smoothing [m/s].
+    - ``eps``, ``exact``: as for :class:`Coulomb`; the exact law (the default) sticks while
+      the holding force stays within ``μs N`` and slips at ``N(μc + (μs-μc)e^{-(Ẋ/vs)²})``.
 
     ```python
     law = Stribeck(mu_c=0.5, mu_s=0.6, v_s=1e-2)
@@ -130,7 +178,12 @@ class Stribeck(AbstractFrictionLaw):
     mu_c: object = eqx.field(converter=as_float)
     mu_s: object = eqx.field(converter=as_float)
     v_s: object = eqx.field(converter=as_float)
-    eps: object = eqx.field(converter=as_float, default=1e-4)
+    eps: object = eqx.field(converter=as_float)
+    exact: bool = eqx.field(static=True)
+
+    def __init__(self, mu_c, mu_s, v_s, eps=None, exact=None):
+        self.mu_c, self.mu_s, self.v_s = mu_c, mu_s, v_s
+        self.exact, self.eps = _exact_and_eps(eps, exact)
 
     def __check_init__(self):
         nonnegative("Stribeck", "mu_c", self.mu_c)
@@ -146,16 +199,25 @@ class Stribeck(AbstractFrictionLaw):
         )
 
     def force(self, v, z, normal_force):
-        return self.level(v, normal_force) * smooth_sign(v, self.eps)
+        sgn = jnp.sign(v) if self.exact else smooth_sign(v, self.eps)
+        return self.level(v, normal_force) * sgn
 
     def steady_force(self, v, normal_force):
         return self.force(v, None, normal_force)
 
     def is_sliding(self, v, z, normal_force):
-        return jnp.abs(v) > 10.0 * self.eps
+        return jnp.abs(v) > (0.0 if self.exact else 10.0 * self.eps)
 
     def stiffness_rate(self, normal_force, meff):
+        if self.exact:
+            return jnp.zeros(())
         return self.mu_s * normal_force / (self.eps * meff)
+
+    def breakaway_force(self, normal_force):
+        return self.mu_s * normal_force
+
+    def kinetic_force(self, speed, normal_force):
+        return self.level(speed, normal_force)
 
 
 class Dahl(AbstractFrictionLaw):
@@ -179,6 +241,7 @@ class Dahl(AbstractFrictionLaw):
     """
 
     num_states: ClassVar[int] = 1
+    exact: ClassVar[bool] = False
     mu_c: object = eqx.field(converter=as_float)
     sigma0: object = eqx.field(converter=as_float)
     eps: object = eqx.field(converter=as_float, default=1e-4)
@@ -246,6 +309,7 @@ class LuGre(AbstractFrictionLaw):
     """
 
     num_states: ClassVar[int] = 1
+    exact: ClassVar[bool] = False
     mu_c: object = eqx.field(converter=as_float)
     mu_s: object = eqx.field(converter=as_float)
     v_s: object = eqx.field(converter=as_float)

@@ -15,6 +15,7 @@ from ._custom_types import States, Times
 from ._custom_types import Status as StatusArray
 from ._forcing import AbstractForcing
 from ._status import Status, from_diffrax
+from ._stickslip import hybrid_solve
 from ._system import AbstractAbsorberSystem, FrictionAbsorber
 
 # The automatic choice switches to an implicit solver when (largest rate x forcing period)
@@ -175,8 +176,19 @@ def _regime(ts, sliding, period):
     return jnp.where(frac < 0.02, 0, jnp.where(frac > 0.8, 2, 1))
 
 
-@eqx.filter_jit
-def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw, energy):
+def _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw,
+                      energy):
+    """States at ``ts`` (with the work and dissipation columns when ``energy``), status and
+    step count: one diffrax solve, or the event-driven segments of a hybrid system."""
+    if system.hybrid:
+        ys, _, status, nsteps, _ = hybrid_solve(
+            system, forcing, s0, t0, t1, ts, solver=solver, rtol=rtol, atol=atol,
+            max_steps=max_steps, scale=jnp.ones_like(s0),
+            max_segments=max_steps)  # every segment takes at least one step
+        if throw:
+            ys = eqx.error_if(ys, status != Status.SUCCESS, "stick–slip integration failed "
+                              "(max_steps, or more switches than allowed: chattering)")
+        return ys, status, nsteps
     terms = make_terms(system, forcing, solver, energy)
     if energy:
         s0 = jnp.concatenate([s0, jnp.zeros(2, s0.dtype)])
@@ -192,9 +204,15 @@ def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, 
         max_steps=max_steps,
         throw=throw,
     )
-    status = from_diffrax(sol.result)
+    return sol.ys, from_diffrax(sol.result), sol.stats["num_steps"]
+
+
+@eqx.filter_jit
+def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw, energy):
+    ys, status, nsteps = _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol,
+                                           dt0, max_steps, throw, energy)
     n = system.num_states
-    s = sol.ys[:, :n]
+    s = ys[:, :n]
     status = jnp.where(
         (status == Status.SUCCESS) & ~jnp.all(jnp.isfinite(s)), Status.NONFINITE, status
     )
@@ -205,7 +223,7 @@ def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, 
         ys=system.to_public(s),
         coupling_force=fp,
         status=status,
-        num_steps=sol.stats["num_steps"],
+        num_steps=nsteps,
         system=system,
         forcing=forcing,
     )
@@ -221,7 +239,7 @@ def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, 
             regime=_regime(ts, sliding, forcing.period),
         )
     if energy:
-        out.update(work=sol.ys[:, n], dissipated=sol.ys[:, n + 1])
+        out.update(work=ys[:, n], dissipated=ys[:, n + 1])
     return out
 
 
@@ -284,6 +302,9 @@ def simulate(
     if dt0 is not None:
         check_scalar("simulate", "dt0", dt0, lo=0.0, lo_open=True)
     check_state("y0", y0, system.num_states)
+    if energy and system.hybrid:
+        raise ValueError("simulate.energy=True is not available with an exact stick–slip law "
+                         "(friction.exact=True): use the smoothed law for energy bookkeeping")
     if ts is None:
         n = int(
             min(

@@ -39,9 +39,13 @@ from ._forcing import Harmonic
 from ._linear import linear_guess
 from ._simulate import _resolve_solver
 from ._status import Status, from_diffrax
+from ._stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
 from ._system import AbstractAbsorberSystem, ImpactAbsorber
 
 SAMPLES_PER_PERIOD = 256
+# stick–slip segments allowed in one integration (the loop ends at t1 long before, unless
+# the motion chatters)
+MAX_SEGMENTS = SEGMENTS_PER_PERIOD * 64
 
 
 class SteadyState(eqx.Module):
@@ -113,6 +117,20 @@ def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
     return sol.ys, from_diffrax(sol.result)
 
 
+def _integrate(dyn, x0, t0, t1, ts, cfg):
+    """Scaled states of ``dyn`` from ``x0`` at ``t0`` saved at ``ts`` (or at ``t1`` only when
+    ``ts`` is None), and the status: smooth systems by one diffrax solve, hybrid ones
+    (exact stick–slip) segment by segment (:mod:`absorber_jax._stickslip`)."""
+    system, forcing = dyn
+    if system.hybrid:
+        ys, x, status, _, _ = hybrid_solve(
+            system, forcing, x0, t0, t1, ts, solver=cfg.solver, rtol=cfg.rtol, atol=cfg.atol,
+            max_steps=cfg.max_steps, scale=state_scale(system, forcing),
+            max_segments=MAX_SEGMENTS)
+        return (x[None] if ts is None else ys), status
+    return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, t0, t1, ts, cfg)
+
+
 def _flow(dyn, x0, t1, ts, *, cfg):
     """Scaled states of ``dyn = (system, forcing)`` from ``x0`` at ``t = 0`` saved at ``ts``
     (or at ``t1`` only when ``ts`` is None), and the integrator's status; differentiable in
@@ -121,9 +139,9 @@ def _flow(dyn, x0, t1, ts, *, cfg):
     An explicit solver is differentiated through its steps (diffrax ``ForwardMode``: the
     state is integrated once, its tangents ride along).  An implicit solver is not, see
     :func:`_flow_sensitivity`."""
-    if isinstance(cfg.solver, diffrax.AbstractImplicitSolver):
+    if isinstance(cfg.solver, diffrax.AbstractImplicitSolver) and not dyn[0].hybrid:
         return _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
-    return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, 0.0, t1, ts, cfg)
+    return _integrate(dyn, x0, 0.0, t1, ts, cfg)
 
 
 @eqx.filter_custom_jvp
@@ -143,6 +161,9 @@ def _flow_sensitivity(dyn, x0, t1, ts, *, cfg):
 def _flow_sensitivity_jvp(primals, tangents, *, cfg):
     dyn, x0, t1, ts = primals
     t_dyn, t_x0, t_t1, t_ts = tangents
+    # the primal comes from its own state-only solve: jax.linearize (Newton) needs primal
+    # outputs computable without the tangents
+    ys, status = _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
     t_x0 = jnp.zeros_like(x0) if t_x0 is None else t_x0
 
     def augmented(t, y, a):
@@ -155,9 +176,8 @@ def _flow_sensitivity_jvp(primals, tangents, *, cfg):
                                (jax.lax.stop_gradient(x), dyn), (dx, t_dyn))
         return _scaled_rate(dyn, t, x), df
 
-    # steps controlled on the state only: the sensitivities ride along, as in forward mode;
-    # the state integrated here is the primal output (no separate state-only solve)
-    (ys, dys), status = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg,
+    # steps controlled on the state only: the sensitivities ride along, as in forward mode
+    (_, dys), st2 = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg,
                                  norm=lambda e: optx.rms_norm(e[0]))
     # moving save times (they depend on the forcing period): add the state's rate there
     t_save, t_times = (t1[None], t_t1) if ts is None else (ts, t_ts)
@@ -165,7 +185,7 @@ def _flow_sensitivity_jvp(primals, tangents, *, cfg):
         f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)
         dys = dys + f * jnp.reshape(t_times, (-1, 1))
     # a sensitivity integration that failed gives no derivative (the status flags the point)
-    dys = jnp.where((status == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
+    dys = jnp.where((st2 == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
     return (ys, status), (dys, None)
 
 
@@ -314,8 +334,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
     def body(c):
         t, x, buf, d_prev, d_prev2, k, _, _, _ = c
         ts = t + T * jnp.arange(1, chunk + 1)
-        ys, st = _diffeqsolve(lambda t_, x_, a: _scaled_rate((system, forcing), t_, x_), x,
-                              t, ts[-1], ts, cfg)
+        ys, st = _integrate((system, forcing), x, t, ts[-1], ts, cfg)
         buf = jnp.concatenate([buf, ys])[-H:]
         d = distances(buf)
         # contraction per period, judged pessimistically over one and two chunks (the ratio

@@ -61,6 +61,29 @@ class AbstractAbsorberSystem(eqx.Module):
     def stiffness_rate(self):
         """Rough largest rate [1/s] of the linearised dynamics (solver choice)."""
 
+    # -- exact nonsmooth (hybrid) dynamics: see absorber_jax._stickslip -----------------
+    @property
+    def hybrid(self) -> bool:
+        """``True`` when the coupling is nonsmooth and integrated by switching modes at
+        events (an exact stick–slip friction law); ``False`` for smooth vector fields."""
+        return False
+
+    def mode_of(self, t, s, forcing):
+        """Integer mode of internal state ``s`` at time ``t`` (hybrid systems only)."""
+        raise NotImplementedError
+
+    def mode_rate(self, t, s, forcing, mode):
+        """d/dt of ``s`` within ``mode`` (hybrid systems only)."""
+        raise NotImplementedError
+
+    def switch_function(self, t, s, forcing, mode):
+        """Leaves ``mode`` where this crosses zero upwards (hybrid systems only)."""
+        raise NotImplementedError
+
+    def next_mode(self, t, s, forcing, mode):
+        """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
+        raise NotImplementedError
+
     # -- state conversions ---------------------------------------------------------
     def to_internal(self, y):
         y = jnp.asarray(y)
@@ -81,7 +104,10 @@ class AbstractAbsorberSystem(eqx.Module):
     # -- dynamics --------------------------------------------------------------------
     def accelerations(self, t, s, forcing):
         M, k, c = self.primary
-        fp, zdot = self.coupling(s[2], s[3], s[4:])
+        if self.hybrid:
+            fp, zdot = self.mode_coupling(t, s, forcing, self.mode_of(t, s, forcing))
+        else:
+            fp, zdot = self.coupling(s[2], s[3], s[4:])
         a1 = (forcing(t) - c * s[1] - k * s[0] + fp) / M
         a2 = -fp / self.absorber_mass
         return a1, a2, fp, zdot
@@ -90,6 +116,10 @@ class AbstractAbsorberSystem(eqx.Module):
         """d/dt of the internal state ``s`` under ``forcing``."""
         a1, a2, _, zdot = self.accelerations(t, s, forcing)
         return jnp.concatenate([jnp.stack([s[1], a1, s[3], a2 - a1]), zdot])
+
+    def mode_coupling(self, t, s, forcing, mode):
+        """``coupling`` of a hybrid system in a given mode (hybrid systems only)."""
+        raise NotImplementedError
 
     def coupling_rate(self, s):
         """The coupling's share of ``vector_field`` (the stiff part, for IMEX solvers)."""
@@ -272,6 +302,60 @@ class FrictionAbsorber(AbstractAbsorberSystem):
 
     def is_sliding(self, u, w, z):
         return self.friction.is_sliding(-w, z, self.normal_force)
+
+    # -- exact stick–slip (friction.exact): modes 0 stick, +1 / -1 slip with sign(Ẋ) ----
+    @property
+    def hybrid(self) -> bool:
+        return self.friction.exact
+
+    def holding_force(self, t, s, forcing):
+        """Friction force ``Fnl`` [N] that keeps the absorber stuck (``Ẋ = 0``): both masses
+        then share the acceleration ``a = (F - c1 v1 - k1 x1) / (m1 + m2)`` and
+        ``Fnl = m2 a - k2 X`` with ``X = x1 - x2 = -u``."""
+        a = (forcing(t) - self.c1 * s[1] - self.k1 * s[0]) / (self.m1 + self.m2)
+        return self.m2 * a + self.k2 * s[2]
+
+    def _holding_mode(self, t, s, forcing):
+        f = self.holding_force(t, s, forcing)
+        stuck = jnp.abs(f) <= self.friction.breakaway_force(self.normal_force)
+        return jnp.where(stuck, 0, jnp.where(f > 0, 1, -1))
+
+    def mode_of(self, t, s, forcing):
+        V = -s[3]
+        return jnp.where(V > 0, 1, jnp.where(V < 0, -1, self._holding_mode(t, s, forcing)))
+
+    def mode_coupling(self, t, s, forcing, mode):
+        V, X = -s[3], -s[2]
+        slip = mode * self.friction.kinetic_force(jnp.abs(V), self.normal_force)
+        fnl = jnp.where(mode == 0, self.holding_force(t, s, forcing), slip)
+        return -(self.c2 * V + self.k2 * X + fnl), jnp.zeros((0,), dtype=jnp.result_type(V))
+
+    def mode_rate(self, t, s, forcing, mode):
+        M, k, c = self.primary
+        fp, _ = self.mode_coupling(t, s, forcing, mode)
+        a1 = (forcing(t) - c * s[1] - k * s[0] + fp) / M
+        a2 = -fp / self.m2
+        stuck = mode == 0
+        # stuck: the relative state is frozen exactly (both masses share a1)
+        return jnp.stack([s[1], a1, jnp.where(stuck, 0.0, s[3]),
+                          jnp.where(stuck, 0.0, a2 - a1)])
+
+    def switch_function(self, t, s, forcing, mode):
+        # stick: holding force over the breakaway limit [N]; slip: Ẋ reversing [m/s]
+        # (each normalised by its own scale so that the event root finder sees O(1) values)
+        cap = self.friction.breakaway_force(self.normal_force)
+        f = self.holding_force(t, s, forcing)
+        fscale = jnp.maximum(cap, 1e-300)
+        return jnp.where(mode == 0, (jnp.abs(f) - cap) / fscale, mode * s[3])
+
+    def next_mode(self, t, s, forcing, mode):
+        # slip ending (Ẋ = 0): the relative velocity is exactly zero from here on; stick or
+        # slip back the other way by the holding force.  Stick ending: slip in the
+        # direction of the holding force (never back to stick: it is at the limit).
+        s = s.at[3].set(jnp.where(mode == 0, s[3], 0.0))
+        f = self.holding_force(t, s, forcing)
+        new = jnp.where(mode == 0, jnp.where(f > 0, 1, -1), self._holding_mode(t, s, forcing))
+        return new, s
 
     def stiffness_rate(self):
         meff = self.m1 * self.m2 / (self.m1 + self.m2)

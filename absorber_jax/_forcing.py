@@ -15,6 +15,7 @@ class AbstractForcing(eqx.Module):
     [rad/s] (used for periods, Poincaré sections and save grids)."""
 
     omega: eqx.AbstractVar[object]
+    amplitude: eqx.AbstractVar[object]  # force amplitude F0 [N]
 
     @abc.abstractmethod
     def __call__(self, t):

@@ -58,7 +58,11 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     t0b, t1b = _sg(t0), _sg(t1)
     mode0 = system.mode_of(t0b, _sg(x0) * scale, forcing)
     x0 = x0 - rate(t0b, x0, mode0) * (t0 - t0b)
-    root = optx.Newton(rtol=1e-13, atol=1e-13)
+    # the switching functions are dimensionless (system.switch_function), so one absolute
+    # tolerance on their value serves every scale of motion.  It cannot be much tighter:
+    # late in a long run one rounding step of t moves g by |ġ| ulp(t) ~ 1e-12.  The located
+    # time is then polished by the Newton step dt = -g/ġ below (error ~ (g/ġ)² g̈/ġ).
+    root = optx.Newton(rtol=1e-12, atol=1e-9)
     ctrl = diffrax.PIDController(rtol=rtol, atol=atol, norm=norm)
     ts_b = None if ts is None else _sg(ts)
 
@@ -91,7 +95,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         _, gdot = jax.jvp(lambda tt, xx: switch(tt, xx, mode), (t_end, _sg(x_hat)),
                           (jnp.ones_like(t_end), rate(t_end, _sg(x_hat), mode)))
         gdot = jnp.where(gdot == 0, 1.0, gdot)
-        dt = jnp.where(hit, -g / _sg(gdot), 0.0)  # value ~0, tangent dt*
+        dt = jnp.where(hit, -g / _sg(gdot), 0.0)  # a last Newton step; tangent dt*
         x_star = x_hat + rate(t_end, _sg(x_hat), mode) * dt
         new_mode, x_proj = system.next_mode(t_end, x_star * scale, forcing, mode)
         x_proj = x_proj / scale

@@ -341,12 +341,16 @@ class FrictionAbsorber(AbstractAbsorberSystem):
                           jnp.where(stuck, 0.0, a2 - a1)])
 
     def switch_function(self, t, s, forcing, mode):
-        # stick: holding force over the breakaway limit [N]; slip: Ẋ reversing [m/s]
-        # (each normalised by its own scale so that the event root finder sees O(1) values)
+        # stick: holding force over the breakaway limit; slip: Ẋ reversing.  Both are made
+        # dimensionless (by the limit, and by the velocity scale F0 ω / (k1 + m1 ω²) of the
+        # forced primary), homogeneous of degree 0 in (F0, N): the event root finder's
+        # tolerance then means the same for every scale of motion
         cap = self.friction.breakaway_force(self.normal_force)
         f = self.holding_force(t, s, forcing)
-        fscale = jnp.maximum(cap, 1e-300)
-        return jnp.where(mode == 0, (jnp.abs(f) - cap) / fscale, mode * s[3])
+        w = forcing.omega
+        v_ref = forcing.amplitude * w / (self.k1 + self.m1 * w**2)
+        return jnp.where(mode == 0, (jnp.abs(f) - cap) / jnp.maximum(cap, 1e-300),
+                         mode * s[3] / jnp.maximum(v_ref, 1e-30))
 
     def next_mode(self, t, s, forcing, mode):
         # slip ending (Ẋ = 0): the relative velocity is exactly zero from here on; stick or

@@ -77,11 +77,17 @@ def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0
 
 
 def friction_coulomb(m1, k1, c1, m2, k2, c2, mu, N, F0, omega, t_eval):
-    """Event-exact Coulomb stick–slip (static = kinetic coefficient ``mu``).
+    """Event-exact Coulomb stick–slip (static = kinetic coefficient ``mu``), from rest."""
+    return friction_stick_slip(m1, k1, c1, m2, k2, c2, mu, mu, np.inf, N, F0, omega, t_eval)
+
+
+def friction_stick_slip(m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega, t_eval):
+    """Event-exact stick–slip with a Stribeck friction curve, from rest.
 
     Modes: stick (the masses move together, X frozen) while the friction needed to hold them
-    stays within mu N; slip with Fnl = ±mu N until the relative velocity returns to zero."""
-    fmax = mu * N
+    stays within mu_s N; slip with Fnl = ±N (mu_c + (mu_s - mu_c) exp(-(V/v_s)^2)) until the
+    relative velocity V returns to zero (v_s = inf: Coulomb with mu_c = mu_s)."""
+    fmax = mu_s * N
 
     def forcing(t):
         return F0 * np.sin(omega * t)
@@ -98,7 +104,7 @@ def friction_coulomb(m1, k1, c1, m2, k2, c2, mu, N, F0, omega, t_eval):
                 a = (forcing(t) - c1 * v1 - k1 * x1) / (m1 + m2)
                 return [v1, a, v2, a]
             X, V = x1 - x2, v1 - v2
-            fnl = mode * fmax
+            fnl = mode * N * (mu_c + (mu_s - mu_c) * np.exp(-((V / v_s) ** 2)))
             a1 = (forcing(t) - c1 * v1 - k1 * x1 - c2 * V - k2 * X - fnl) / m1
             a2 = (c2 * V + k2 * X + fnl) / m2
             return [v1, a1, v2, a2]
@@ -142,6 +148,31 @@ def friction_coulomb(m1, k1, c1, m2, k2, c2, mu, N, F0, omega, t_eval):
             mode = 0 if abs(fr) <= fmax else (1 if fr > 0 else -1)
         t = t_end
     return _assemble(out_t, out_s)
+
+
+def den_hartog_amplitude(m, k, F, P, omega):
+    """Exact amplitude of m x'' + k x + F sign(x') = P sin(ωt + φ) with continuous sliding,
+    built as Den Hartog (1930) did: on the half period with x' > 0 the motion is linear; its
+    ends are turning points at -X and +X (symmetry)."""
+    from scipy.optimize import fsolve
+
+    wn = np.sqrt(k / m)
+    Tn = np.pi / omega
+
+    def residual(p):
+        X, phi = p
+        a = P / (k - m * omega**2)
+        # x = A cos(wn t) + B sin(wn t) + a sin(ωt + φ) - F/k, x(0) = -X, x'(0) = 0
+        A = -X - a * np.sin(phi) + F / k
+        B = -a * omega * np.cos(phi) / wn
+        x = A * np.cos(wn * Tn) + B * np.sin(wn * Tn) + a * np.sin(omega * Tn + phi) - F / k
+        v = (-A * wn * np.sin(wn * Tn) + B * wn * np.cos(wn * Tn)
+             + a * omega * np.cos(omega * Tn + phi))
+        return [x - X, v]
+
+    X0 = P / abs(k - m * omega**2)
+    X, phi = fsolve(residual, [X0, -np.pi / 2], xtol=1e-14)
+    return abs(X)
 
 
 def linear_two_mass(Mmat, Cmat, Kmat, fvec, F0, omega, t_eval):

@@ -28,6 +28,7 @@ they depend on parameters (the forcing period): diffrax itself never sees a time
 from __future__ import annotations
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import optimistix as optx
@@ -36,6 +37,28 @@ from ._status import Status, from_diffrax
 
 # segments allowed per forcing period (stick–slip has 2 to 4; more means chattering)
 SEGMENTS_PER_PERIOD = 32
+# event location: bisection to |g| < EVENT_TOL (dimensionless) and a time bracket of
+# EVENT_TOL s, then one Newton step no longer than POLISH_MAX s (a grazing switch, ġ ~ 0,
+# must not send it far); an event whose switch residual stays above EVENT_CHECK fails
+EVENT_TOL = 1e-10
+POLISH_MAX = 1e-8
+EVENT_CHECK = 1e-6
+
+
+class _EventBisection(optx.Bisection):
+    """Bisection on diffrax's event bracket, its direction detected per lane.
+
+    A switch is an upcrossing, ``g(t_prev) <= 0 < g(t_next)``; but under ``vmap`` diffrax
+    also runs the root find on lanes without an event, where the function is
+    ``t_next - t`` (decreasing, root at ``t_next``).  optimistix's ``flip="detect"`` raises
+    there (no sign change when evaluated at the end), so the direction is set here from the
+    two end values without a check."""
+
+    def init(self, fn, y, args, options, f_struct, aux_struct, tags):
+        state = super().init(fn, y, args, options, f_struct, aux_struct, tags)
+        lo, _ = fn(jnp.asarray(options["lower"], f_struct.dtype), args)
+        hi, _ = fn(jnp.asarray(options["upper"], f_struct.dtype), args)
+        return eqx.tree_at(lambda s: s.flip, state, lo > hi)
 
 
 def _sg(x):
@@ -58,11 +81,13 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     t0b, t1b = _sg(t0), _sg(t1)
     mode0 = system.mode_of(t0b, _sg(x0) * scale, forcing)
     x0 = x0 - rate(t0b, x0, mode0) * (t0 - t0b)
-    # the switching functions are dimensionless (system.switch_function), so one absolute
-    # tolerance on their value serves every scale of motion.  It cannot be much tighter:
+    # The event is bracketed by diffrax's last step, and bisection on its dense interpolant
+    # cannot leave the bracket (Newton failed on grazing switches, where ġ ~ 0 at a near
+    # double root).  The switching functions are dimensionless (system.switch_function), so
+    # one tolerance on their value serves every scale of motion; it cannot be much tighter:
     # late in a long run one rounding step of t moves g by |ġ| ulp(t) ~ 1e-12.  The located
-    # time is then polished by the Newton step dt = -g/ġ below (error ~ (g/ġ)² g̈/ġ).
-    root = optx.Newton(rtol=1e-12, atol=1e-9)
+    # time is then polished by one Newton step dt = -g/ġ below.
+    root = _EventBisection(rtol=1e-14, atol=EVENT_TOL, flip=False)
     ctrl = diffrax.PIDController(rtol=rtol, atol=atol, norm=norm)
     ts_b = None if ts is None else _sg(ts)
 
@@ -82,8 +107,12 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         t, x, mode, k, st, nsteps, ys = c
         sol = segment(t, x, mode)
         hit = sol.event_mask
-        ok = (sol.result == diffrax.RESULTS.successful) | (
-            sol.result == diffrax.RESULTS.event_occurred)
+        # a located event counts even when the bisection ran out of iterations (rounding
+        # of t kept |g| above its tolerance): the residual check below decides
+        search_out = sol.result == diffrax.RESULTS.promote(
+            optx.RESULTS.nonlinear_max_steps_reached)
+        ok = ((sol.result == diffrax.RESULTS.successful)
+              | (sol.result == diffrax.RESULTS.event_occurred) | (hit & search_out))
         st = jnp.where(ok, Status.SUCCESS, from_diffrax(sol.result))
         t_end = _sg(sol.ts[0][-1])
         x_end = sol.ys[0][-1]
@@ -95,7 +124,11 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         _, gdot = jax.jvp(lambda tt, xx: switch(tt, xx, mode), (t_end, _sg(x_hat)),
                           (jnp.ones_like(t_end), rate(t_end, _sg(x_hat), mode)))
         gdot = jnp.where(gdot == 0, 1.0, gdot)
-        dt = jnp.where(hit, -g / _sg(gdot), 0.0)  # a last Newton step; tangent dt*
+        raw = -g / _sg(gdot)  # its tangent is dt*, the implicit-function derivative
+        step = jnp.clip(_sg(raw), -POLISH_MAX, POLISH_MAX)  # a last, bounded Newton step
+        dt = jnp.where(hit, step + (raw - _sg(raw)), 0.0)
+        st = jnp.where((st == Status.SUCCESS) & hit & (jnp.abs(_sg(g)) > EVENT_CHECK),
+                       Status.SOLVER_FAILED, st)
         x_star = x_hat + rate(t_end, _sg(x_hat), mode) * dt
         new_mode, x_proj = system.next_mode(t_end, x_star * scale, forcing, mode)
         x_proj = x_proj / scale

@@ -139,6 +139,32 @@ def value_and_grad(system, params, omegas, *, amplitude, objective="peak", softn
     return float(val), grads, np.asarray(status)
 
 
+def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, newton_steps,
+            cfg):
+    """Internal-state guesses for a band: the converged states where ``status`` is 0, and
+    for the others the orbit found by marching then shooting (the sweep's retry, in
+    fixed-size batches: one compilation)."""
+    from ._sweep import RETRY_BATCH, _retry_chunk
+
+    p = np.asarray(reparam.forward(u))
+    sysp = replace_params(system, dict(zip(names, p)), check=False)
+    bad = np.flatnonzero(status != Status.SUCCESS)
+    seeds = np.where((status == Status.SUCCESS)[:, None], states, np.nan)
+    opts = (("tol", float(tol)), ("newton_steps", int(newton_steps)), ("n_max", 6),
+            ("max_periods", 4000), ("chunk", 40), ("floquet", False), ("root", "newton"))
+    for start in range(0, bad.size, RETRY_BATCH):
+        idx = bad[start:start + RETRY_BATCH]
+        pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
+        out = _retry_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
+                           jnp.asarray(amplitude, dtype=float),
+                           jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, 1, names, opts)
+        st, pub = np.asarray(out.status)[:idx.size], np.asarray(out.state)[:idx.size]
+        for j, i in enumerate(idx):
+            if st[j] == Status.SUCCESS:
+                seeds[i] = np.asarray(sysp.to_internal(jnp.asarray(pub[j])))
+    return seeds
+
+
 def _check(system, params, omegas, objective):
     if objective not in OBJECTIVES:
         raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
@@ -232,6 +258,14 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
         val, g, (amps, states, status) = _value_and_jac(system, names, reparam, u, om, amp,
                                                         guesses, cfg, tol, newton_steps,
                                                         objective, softness)
+        if not np.all(np.asarray(status) == Status.SUCCESS):
+            # Newton from the warm start (or the linear guess) failed somewhere: seed those
+            # frequencies from marching (march_then_shoot) and evaluate the step again
+            seeds = _reseed(system, names, reparam, u, omegas, amplitude, np.asarray(status),
+                            np.asarray(states), tol, newton_steps, cfg)
+            val, g, (amps, states, status) = _value_and_jac(
+                system, names, reparam, u, om, amp, jnp.asarray(seeds), cfg, tol,
+                newton_steps, objective, softness)
         val, g, amps, status = float(val), np.asarray(g), np.asarray(amps), np.asarray(status)
         ok = status == Status.SUCCESS
         if amps_before is None:
@@ -264,14 +298,15 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     hist["omegas"] = omegas
     hist["names"] = names
     hist["amplitude_before"] = amps_before
-    fresh = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
-    after, _, st_after, _ = band_amplitudes(tuned, om, amp, fresh, cfg, tol, newton_steps)
-    hist["amplitude_after"] = np.asarray(after)
-    hist["status_after"] = np.asarray(st_after)
+    from ._sweep import frequency_response
+
+    after = frequency_response(tuned, omegas, amplitude=float(amplitude), tol=tol, rtol=rtol,
+                               atol=atol, newton_steps=newton_steps, solver=solver)
+    hist["amplitude_after"] = after.amplitude
+    hist["status_after"] = after.status
+    hist["stable_after"] = after.stable
     hist["best"] = {k: float(v) for k, v in zip(names, p_best)}
     if confirm:
-        from ._sweep import frequency_response
-
         om_c = np.linspace(omegas[0], omegas[-1], min(confirm_points, len(omegas)))
         kw = dict(amplitude=float(amplitude), method="marching", max_periods=4000)
         before = frequency_response(system, om_c, **kw)

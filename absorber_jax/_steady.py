@@ -5,10 +5,12 @@ Both work on the *internal* state scaled to order one (positions by a length ``L
 velocities by ``Lω``) so that one tolerance means the same thing for every component.
 
 - **Shooting** solves ``Φ_{nT}(s) - s = 0`` for the period-``n`` map ``Φ`` with optimistix's
-  Levenberg–Marquardt least squares.  Where the absorber floats without touching the walls,
-  its position is arbitrary: the orbits form a family, ``∂Φ/∂s - I`` is singular (a double
-  Floquet multiplier at exactly 1) and plain Newton breaks down; the damped least-squares
-  step converges to the member of the family nearest the guess.  The monodromy matrix is
+  Newton, its linear steps solved by SVD (minimum norm).  Where the absorber floats without
+  touching the walls (or sticks, with its relative position frozen), its position is
+  arbitrary: the orbits form a family, ``∂Φ/∂s - I`` is singular (a Floquet multiplier at
+  exactly 1) and the minimum-norm step converges to the member of the family nearest the
+  guess.  A shooting solve that fails is retried by marching then shooting
+  (:func:`march_then_shoot`).  The monodromy matrix is
   ``jax.jacfwd`` of ``Φ`` (diffrax ``ForwardMode``); its eigenvalues are the Floquet
   multipliers.
 - **Marching** integrates forward in chunks of periods and samples the Poincaré section
@@ -378,6 +380,28 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
                    n_cap=n_max)
 
 
+def march_then_shoot(system, forcing, cfg, *, n, tol, newton_steps, n_max=6, march_tol=1e-5,
+                     max_periods=4000, chunk=40, with_floquet=True, root="newton"):
+    """The robust fallback of a shooting solve that failed: march from rest onto the orbit
+    the structure settles on, then polish it by shooting from there (Newton converges in
+    one or two steps from a marched state).  The shooting result is kept when it converged
+    with the marched period multiple ``n``; otherwise marching's own result.
+
+    Newton from the linear guess is not globally convergent on the piecewise-smooth period
+    map of a sticking absorber (it wanders for 40 steps); marching is, for a stable orbit."""
+    x0 = system.rest_state() / state_scale(system, forcing)
+    ma = march(system, forcing, x0, cfg, n_max=n_max, tol=march_tol, max_periods=max_periods,
+               chunk=chunk, with_floquet=with_floquet)
+    xm = system.to_internal(ma.state) / state_scale(system, forcing)
+    xm = jnp.where(jnp.all(jnp.isfinite(xm)), xm, x0)
+    sh = shoot(system, forcing, xm, n, cfg, tol=tol, newton_steps=newton_steps,
+               with_floquet=with_floquet, root=root)
+    use_shot = (sh.status == Status.SUCCESS) & ((ma.status != Status.SUCCESS)
+                                                | (ma.period_multiple == n))
+    out = jax.tree_util.tree_map(lambda a, b: jnp.where(use_shot, a, b), sh, ma)
+    return eqx.tree_at(lambda r: r.iterations, out, sh.iterations + ma.iterations)
+
+
 def _check(system, forcing):
     if not isinstance(system, AbstractAbsorberSystem):
         raise ValueError(f"system must be an ImpactAbsorber or FrictionAbsorber, got "
@@ -394,7 +418,7 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
 
 @eqx.filter_jit
 def _steady_jit(system, forcing, guess, cfg, method, n, n_max, tol, newton_steps,
-                max_periods, chunk, with_floquet, root):
+                max_periods, chunk, with_floquet, root, retry):
     scale = state_scale(system, forcing)
     if guess is None:
         x0 = linear_guess(system, forcing) / scale if method == "shooting" else \
@@ -402,20 +426,30 @@ def _steady_jit(system, forcing, guess, cfg, method, n, n_max, tol, newton_steps
     else:
         x0 = system.to_internal(guess) / scale
     if method == "shooting":
-        return shoot(system, forcing, x0, n, cfg, tol=tol, newton_steps=newton_steps,
-                     with_floquet=with_floquet, root=root)
+        res = shoot(system, forcing, x0, n, cfg, tol=tol, newton_steps=newton_steps,
+                    with_floquet=with_floquet, root=root)
+        if not retry:
+            return res
+        # a failed point is retried by marching then polishing (runs only when needed)
+        return jax.lax.cond(
+            res.status == Status.SUCCESS, lambda: res,
+            lambda: march_then_shoot(system, forcing, cfg, n=n, tol=tol,
+                                     newton_steps=newton_steps, n_max=n_max,
+                                     max_periods=max_periods, chunk=chunk,
+                                     with_floquet=with_floquet, root=root))
     return march(system, forcing, x0, cfg, n_max=n_max, tol=tol, max_periods=max_periods,
                  chunk=chunk, with_floquet=with_floquet)
 
 
 def steady_state(system, forcing, *, method="shooting", n=1, guess=None, n_max=6, tol=None,
                  solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000, newton_steps=40,
-                 max_periods=4000, chunk=40, floquet=True, root="newton") -> SteadyState:
+                 max_periods=4000, chunk=40, floquet=True, root="newton",
+                 retry=True) -> SteadyState:
     """The periodic response of ``system`` under a :class:`Harmonic` ``forcing``.
 
     **Arguments**
 
-    - ``method``: ``"shooting"`` (Levenberg–Marquardt on the period-``n`` map from ``guess``,
+    - ``method``: ``"shooting"`` (Newton on the period-``n`` map from ``guess``,
       default the linear limit of the scene, see :func:`linear_guess`) or ``"marching"``
       (integrate from ``guess``, default rest, until the Poincaré samples repeat with a
       period ``n <= n_max``).
@@ -430,6 +464,9 @@ def steady_state(system, forcing, *, method="shooting", n=1, guess=None, n_max=6
     - ``floquet``: compute the Floquet multipliers (one forward-mode Jacobian).
     - ``root``: shooting's solver, ``"newton"`` (minimum-norm SVD steps) or ``"lm"``
       (Levenberg–Marquardt).
+    - ``retry``: shooting that fails is retried by marching from rest and polishing the
+      marched orbit by shooting (:func:`march_then_shoot`) before the point is flagged;
+      ``iterations`` then counts Newton steps plus periods marched.
 
     **Returns** a :class:`SteadyState`; check ``status`` (0 = success).
 
@@ -456,4 +493,4 @@ def steady_state(system, forcing, *, method="shooting", n=1, guess=None, n_max=6
     g = None if guess is None else jnp.asarray(guess, dtype=float)
     _root_solver(root, 1.0)
     return _steady_jit(system, forcing, g, cfg, method, n, n_max, float(tol), int(newton_steps),
-                       int(max_periods), int(chunk), bool(floquet), root)
+                       int(max_periods), int(chunk), bool(floquet), root, bool(retry))

@@ -17,7 +17,7 @@ from ._linear import linear_guess
 from ._params import replace_params, resolve
 from ._simulate import choose_solver
 from ._status import Status, describe
-from ._steady import make_config, march, shoot, state_scale
+from ._steady import make_config, march, march_then_shoot, shoot, state_scale
 from ._system import AbstractAbsorberSystem
 
 FIELDS = ("amplitude", "rms", "harmonic", "absorber_amplitude", "absorber_rms",
@@ -94,6 +94,47 @@ def _one_point(system, omega, amplitude, guess, cfg, method, n, opts):
                  with_floquet=opts["floquet"])
 
 
+# failed shooting points are retried in vmapped batches of this size (one compilation)
+RETRY_BATCH = 8
+
+
+@eqx.filter_jit
+def _retry_chunk(system, omegas, amplitude, pvals, cfg, n, names, opts):
+    def point(w, pv):
+        sysp = _with(system, names, pv)
+        o = dict(opts)
+        return march_then_shoot(sysp, _forcing(amplitude, w), cfg, n=n, tol=o["tol"],
+                                newton_steps=o["newton_steps"], n_max=o["n_max"],
+                                max_periods=o["max_periods"], chunk=o["chunk"],
+                                with_floquet=o["floquet"], root=o["root"])
+
+    return jax.vmap(point)(omegas, pvals)
+
+
+def _retry_failed(system, res, W, PV, amp, cfg, n, names, opts, progress):
+    """Re-solve the failed points of a flat (point-axis) result by marching then shooting,
+    a few lanes at a time so that the healthy points never wait for them."""
+    from tqdm.auto import tqdm
+
+    bad = np.flatnonzero(np.asarray(res.status) != Status.SUCCESS)
+    if bad.size == 0:
+        return res
+    leaves = jax.tree_util.tree_map(np.array, res)  # writable copies
+    for start in tqdm(range(0, bad.size, RETRY_BATCH), desc="retry", disable=not progress):
+        idx = bad[start:start + RETRY_BATCH]
+        pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
+        out = _retry_chunk(system, jnp.asarray(W[pad]), amp, jnp.asarray(PV[pad]), cfg, n,
+                           names, opts)
+        out = jax.tree_util.tree_map(lambda a: np.asarray(a)[:idx.size], out)
+
+        def put(dst, src, idx=idx):
+            dst[idx] = src
+            return dst
+
+        leaves = jax.tree_util.tree_map(put, leaves, out)
+    return leaves
+
+
 def _with(system, names, values):
     return replace_params(system, dict(zip(names, values)), check=False) if names else system
 
@@ -133,7 +174,7 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
                        n=1, params=None, direction="parallel", chunk_size=64, progress=False,
                        shard=True, tol=None, n_max=6, newton_steps=40, max_periods=4000,
                        chunk=40, floquet=True, solver=None, rtol=1e-9, atol=1e-9,
-                       max_steps=200_000, root="newton"):
+                       max_steps=200_000, root="newton", retry=True):
     """Steady-state frequency response of ``system`` under ``amplitude·sin(ωt)`` for every
     ``ω`` in ``omegas`` [rad/s], in one jit-compiled vmapped call per chunk.
 
@@ -150,6 +191,9 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
       chunks); ``progress``: show a tqdm bar over chunks.
     - ``shard``: spread each chunk over all local devices with ``jax.sharding`` (when there
       are several).
+    - ``retry``: (parallel shooting) points whose shooting failed are re-solved after the
+      sweep by marching then shooting (:func:`march_then_shoot`), a few at a time, before
+      they are flagged.
     - the remaining keywords as in :func:`steady_state`.
 
     ```python
@@ -179,7 +223,7 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
                   progress=progress, shard=shard, tol=tol, n_max=n_max,
                   newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
                   floquet=floquet, solver=solver, rtol=rtol, atol=atol, max_steps=max_steps,
-                  root=root)
+                  root=root, retry=retry)
         return (frequency_response(system, om, direction="up", **kw),
                 frequency_response(system, om, direction="down", **kw))
 
@@ -224,6 +268,8 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
             keep = size - pad
             out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:k], res))
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
+        if method == "shooting" and retry:
+            res = _retry_failed(system, res, W, PV, amp, cfg, n, names, opts, progress)
         res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(order)) + a.shape[1:]), res)
     else:
         carry = jnp.full((P, system.num_states), jnp.nan)

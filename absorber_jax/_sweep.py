@@ -134,7 +134,8 @@ def _in_batches(res, bad, solve, desc, progress):
     for start in tqdm(range(0, bad.size, RETRY_BATCH), desc=desc, disable=not progress):
         idx = bad[start:start + RETRY_BATCH]
         pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
-        out = jax.tree_util.tree_map(lambda a: np.asarray(a)[:idx.size], solve(pad))
+        k = idx.size
+        out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad))
         out = eqx.tree_at(lambda r: r.iterations, out, out.iterations + res.iterations[idx])
 
         def put(dst, src, idx=idx):

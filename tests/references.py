@@ -87,67 +87,83 @@ def friction_stick_slip(m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega, t
     Modes: stick (the masses move together, X frozen) while the friction needed to hold them
     stays within mu_s N; slip with Fnl = ±N (mu_c + (mu_s - mu_c) exp(-(V/v_s)^2)) until the
     relative velocity V returns to zero (v_s = inf: Coulomb with mu_c = mu_s)."""
-    fmax = mu_s * N
+    model = StickSlip(m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega)
+    out_t, out_s = [], []
+    model.run(np.zeros(4), 0, 0.0, t_eval[-1], t_eval, out_t, out_s)
+    return _assemble(out_t, out_s)
 
-    def forcing(t):
-        return F0 * np.sin(omega * t)
 
-    def f_required(t, s):
+class StickSlip:
+    """The event-switched stick–slip equations (see :func:`friction_stick_slip`), run from
+    any state and mode: ``run`` returns the state and mode at ``t1``."""
+
+    def __init__(self, m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega, rtol=RTOL,
+                 atol=ATOL):
+        self.p = (m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega)
+        self.fmax, self.rtol, self.atol = mu_s * N, rtol, atol
+
+    def f_required(self, t, s):
+        m1, k1, c1, m2, k2, c2, *_, F0, omega = self.p
         x1, v1, x2, v2 = s
-        a = (forcing(t) - c1 * v1 - k1 * x1) / (m1 + m2)
+        a = (F0 * np.sin(omega * t) - c1 * v1 - k1 * x1) / (m1 + m2)
         return m2 * a - k2 * (x1 - x2) - c2 * (v1 - v2)
 
-    def rhs(mode):
+    def rhs(self, mode):
+        m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega = self.p
+
         def f(t, s):
             x1, v1, x2, v2 = s
             if mode == 0:
-                a = (forcing(t) - c1 * v1 - k1 * x1) / (m1 + m2)
+                a = (F0 * np.sin(omega * t) - c1 * v1 - k1 * x1) / (m1 + m2)
                 return [v1, a, v2, a]
             X, V = x1 - x2, v1 - v2
             fnl = mode * N * (mu_c + (mu_s - mu_c) * np.exp(-((V / v_s) ** 2)))
-            a1 = (forcing(t) - c1 * v1 - k1 * x1 - c2 * V - k2 * X - fnl) / m1
+            a1 = (F0 * np.sin(omega * t) - c1 * v1 - k1 * x1 - c2 * V - k2 * X - fnl) / m1
             a2 = (c2 * V + k2 * X + fnl) / m2
             return [v1, a1, v2, a2]
 
         return f
 
-    def ev_vel(direction):
-        def g(t, s):
+    def events(self, mode):
+        if mode == 0:
+            def g(t, s):
+                return abs(self.f_required(t, s)) - self.fmax
+
+            g.terminal, g.direction = True, 1
+            return [g]
+
+        def v(t, s):
             return s[1] - s[3]
 
-        g.terminal, g.direction = True, direction
-        return g
+        v.terminal, v.direction = True, -mode
+        return [v]
 
-    def ev_break(t, s):
-        return abs(f_required(t, s)) - fmax
-
-    ev_break.terminal, ev_break.direction = True, 1
-    events = {0: [ev_break], 1: [ev_vel(-1)], -1: [ev_vel(1)]}
-    t, s, mode = 0.0, np.zeros(4), 0
-    t1 = t_eval[-1]
-    out_t, out_s = [], []
-    nudge = False
-    while t < t1:
-        if nudge:  # a grazing transition fired at once: step 1e-10 s in the new mode first
-            s = solve_ivp(rhs(mode), (t, t + 1e-10), s, method="DOP853", rtol=RTOL,
-                          atol=ATOL).y[:, -1]
-            t += 1e-10
-        sol = solve_ivp(rhs(mode), (t, t1), s, method="DOP853", rtol=RTOL, atol=ATOL,
-                        events=events[mode], dense_output=True)
-        nudge = sol.t[-1] - t < 1e-12
-        t_end = sol.t[-1]
-        _collect(sol, t, t_end, t_eval, out_t, out_s)
-        if sol.status != 1:
-            break
-        s = sol.y[:, -1].copy()
-        fr = f_required(t_end, s)
-        if mode == 0:
-            mode = 1 if fr > 0 else -1
-        else:
-            s[3] = s[1]  # exactly zero relative velocity
-            mode = 0 if abs(fr) <= fmax else (1 if fr > 0 else -1)
-        t = t_end
-    return _assemble(out_t, out_s)
+    def run(self, s, mode, t, t1, t_eval=None, out_t=None, out_s=None):
+        s = np.array(s, dtype=float)
+        nudge = False
+        while t < t1:
+            if nudge:  # a grazing transition fired at once: step 1e-10 s in the new mode
+                s = solve_ivp(self.rhs(mode), (t, t + 1e-10), s, method="DOP853",
+                              rtol=self.rtol, atol=self.atol).y[:, -1]
+                t += 1e-10
+            sol = solve_ivp(self.rhs(mode), (t, t1), s, method="DOP853", rtol=self.rtol,
+                            atol=self.atol, events=self.events(mode),
+                            dense_output=t_eval is not None)
+            nudge = sol.t[-1] - t < 1e-12
+            t_end = sol.t[-1]
+            if t_eval is not None:
+                _collect(sol, t, t_end, t_eval, out_t, out_s)
+            s = sol.y[:, -1].copy()
+            if sol.status != 1:
+                break
+            fr = self.f_required(t_end, s)
+            if mode == 0:
+                mode = 1 if fr > 0 else -1
+            else:
+                s[3] = s[1]  # exactly zero relative velocity
+                mode = 0 if abs(fr) <= self.fmax else (1 if fr > 0 else -1)
+            t = t_end
+        return s, mode
 
 
 def den_hartog_amplitude(m, k, F, P, omega):

@@ -198,3 +198,20 @@ def test_failed_shooting_is_retried_by_marching_then_polished():
     frf = aj.frequency_response(system, [76.0, 78.51, 81.0], amplitude=10.0)
     assert np.all(frf.status == 0), frf.failures()
     np.testing.assert_allclose(frf.amplitude[1], float(ss.amplitude), rtol=1e-6)
+
+
+def test_smoothed_law_with_explicit_solver_gets_the_monodromy_right():
+    # the case with the tanh-smoothed law (eps = 1e-4 m/s): the automatic choice is
+    # Tsit5; with steps controlled on the state only, its monodromy was |μ| = 1e66
+    # (shooting diverged) and 2.8e9 (marching called a stable orbit unstable)
+    system = scene(law=aj.Coulomb(mu=0.5, eps=1e-4))
+    assert aj.choose_solver(system, FORCING) == "tsit5"
+    exact = aj.steady_state(scene(), FORCING)
+    for method in ("shooting", "marching"):
+        ss = aj.steady_state(system, FORCING, method=method, retry=False)
+        assert int(ss.status) == 0 and bool(ss.stable), method
+        mu = np.sort(np.abs(np.asarray(ss.multipliers)))
+        np.testing.assert_allclose(mu[-1], np.max(np.abs(np.asarray(exact.multipliers))),
+                                   atol=2e-3)
+        np.testing.assert_allclose(float(ss.amplitude), float(exact.amplitude), rtol=1e-4)
+    assert int(aj.steady_state(system, FORCING, retry=False).iterations) <= 8

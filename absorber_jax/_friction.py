@@ -66,6 +66,14 @@ class AbstractFrictionLaw(eqx.Module):
         return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
 
     # -- exact (event-driven) stick–slip: memoryless laws only ------------------------
+    @abc.abstractmethod
+    def kinetic_level(self, normal_force):
+        """Kinetic (Coulomb) level ``μc N`` [N] of the friction force in gross sliding."""
+
+    def state_scale(self, normal_force):
+        """Natural size of the internal states (empty for memoryless laws)."""
+        return jnp.zeros((self.num_states,))
+
     def breakaway_force(self, normal_force):
         """Largest friction force [N] the contact holds while stuck (``μs N``)."""
         raise NotImplementedError(f"{type(self).__name__} has no exact stick–slip mode")
@@ -148,6 +156,9 @@ class Coulomb(AbstractFrictionLaw):
             return jnp.zeros(())
         return self.mu * normal_force / (self.eps * meff)
 
+    def kinetic_level(self, normal_force):
+        return self.mu * normal_force
+
     def breakaway_force(self, normal_force):
         return self.mu * normal_force
 
@@ -213,6 +224,9 @@ class Stribeck(AbstractFrictionLaw):
             return jnp.zeros(())
         return self.mu_s * normal_force / (self.eps * meff)
 
+    def kinetic_level(self, normal_force):
+        return self.mu_c * normal_force
+
     def breakaway_force(self, normal_force):
         return self.mu_s * normal_force
 
@@ -265,6 +279,13 @@ class Dahl(AbstractFrictionLaw):
 
     def stored_energy(self, z):
         return 0.5 * self.sigma0 * z[0] ** 2
+
+    def kinetic_level(self, normal_force):
+        return self.mu_c * normal_force
+
+    def state_scale(self, normal_force):
+        # bristle deflection: its natural size is the saturation value μc N / σ0
+        return jnp.stack([jnp.maximum(self.mu_c * normal_force / self.sigma0, 1e-15)])
 
     def dissipated_power(self, v, z, normal_force):
         # σ0 z (v - ż) = σ0² |v| z² / Fc >= 0
@@ -344,6 +365,13 @@ class LuGre(AbstractFrictionLaw):
 
     def stored_energy(self, z):
         return 0.5 * self.sigma0 * z[0] ** 2
+
+    def kinetic_level(self, normal_force):
+        return self.mu_c * normal_force
+
+    def state_scale(self, normal_force):
+        # bristle deflection: its natural size is the saturation value μc N / σ0
+        return jnp.stack([jnp.maximum(self.mu_c * normal_force / self.sigma0, 1e-15)])
 
     def dissipated_power(self, v, z, normal_force):
         zdot = self.state_rate(v, z, normal_force)[0]

@@ -42,7 +42,7 @@ from ._linear import linear_guess
 from ._simulate import _resolve_solver
 from ._status import Status, from_diffrax
 from ._stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
-from ._system import AbstractAbsorberSystem, ImpactAbsorber
+from ._system import AbstractAbsorberSystem
 
 SAMPLES_PER_PERIOD = 256
 # stick–slip segments allowed in one integration (the loop ends at t1 long before, unless
@@ -99,21 +99,9 @@ TANGENT_CONTROL_STEPS_PER_PERIOD = 2.0e3
 
 
 def state_scale(system, forcing):
-    """Per-component scale of the internal state: ``[L, Lω, L, Lω, L...]``."""
-    M, k, _ = system.primary
-    w = forcing.omega
-    L = forcing.amplitude / (k + M * w**2)
-    if isinstance(system, ImpactAbsorber):
-        L = jnp.maximum(L, system.gap)
-    L = jnp.maximum(L, 1e-12)
-    pos = jnp.ones(system.num_states).at[jnp.array([1, 3])].set(w)
-    scale = L * pos
-    if system.num_law_states:
-        # bristle deflection: its natural size is the saturation value μc N / σ0
-        law = system.friction
-        z_scale = jnp.maximum(law.mu_c * system.normal_force / law.sigma0, 1e-15)
-        scale = scale.at[4:].set(z_scale)
-    return scale
+    """Per-component scale of the internal state (the system's own, see
+    :meth:`AbstractAbsorberSystem.state_scale`)."""
+    return system.state_scale(forcing)
 
 
 def _scaled_rate(dyn, t, x):
@@ -261,10 +249,7 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
     # an absorber floating without touching the walls: its free position and velocity give a
     # structural double multiplier 1 (a Jordan block, split by ~sqrt(rounding) numerically);
     # stability is judged on the other multipliers
-    if isinstance(system, ImpactAbsorber):
-        floating = umax < system.gap
-    else:
-        floating = jnp.zeros((), bool)
+    floating = system.floats(umax)
     dist = jnp.abs(mult - 1.0)
     structural = floating & (dist <= jnp.sort(dist)[1]) & (dist < 1e-2)
     status = jnp.where(status == Status.SUCCESS, st2, status)

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 from ._checks import as_float, nonnegative, positive
 from ._contact import AbstractContactLaw
 from ._friction import AbstractFrictionLaw
+from ._linear import _internal, finite_or_zero, harmonic_response, state_at_zero, two_mass_matrices
 
 
 class AbstractAbsorberSystem(eqx.Module):
@@ -60,6 +61,36 @@ class AbstractAbsorberSystem(eqx.Module):
     @abc.abstractmethod
     def stiffness_rate(self):
         """Rough largest rate [1/s] of the linearised dynamics (solver choice)."""
+
+    @abc.abstractmethod
+    def linear_guess(self, forcing):
+        """A starting orbit for shooting from the linear limits of the scene (internal
+        state at ``t = 0``)."""
+
+    def length_floor(self):
+        """Smallest natural length [m] of the motion (the clearance of an impact absorber)."""
+        return jnp.zeros(())
+
+    def law_state_scale(self):
+        """Natural size of the law's internal states (empty when it has none)."""
+        return jnp.zeros((self.num_law_states,))
+
+    def floats(self, u_max):
+        """True when, on an orbit whose relative motion stays within ``|u| <= u_max``, the
+        absorber's position is free (a structural Floquet multiplier 1, not a loss of
+        stability)."""
+        return jnp.zeros((), bool)
+
+    def state_scale(self, forcing):
+        """Per-component scale of the internal state, ``[L, Lω, L, Lω, z...]`` with
+        ``L = F0 / (k + M ω²)`` (at least ``length_floor``): the integrator and the Newton
+        tolerances of the steady-state layer work on the state divided by it."""
+        M, k, _ = self.primary
+        w = forcing.omega
+        L = jnp.maximum(jnp.maximum(forcing.amplitude / (k + M * w**2), self.length_floor()),
+                        1e-12)
+        scale = L * jnp.stack([1.0, w, 1.0, w])
+        return jnp.concatenate([scale, self.law_state_scale()])
 
     # -- exact nonsmooth (hybrid) dynamics: see absorber_jax._stickslip -----------------
     @property
@@ -120,15 +151,6 @@ class AbstractAbsorberSystem(eqx.Module):
     def mode_coupling(self, t, s, forcing, mode):
         """``coupling`` of a hybrid system in a given mode (hybrid systems only)."""
         raise NotImplementedError
-
-    def coupling_rate(self, s):
-        """The coupling's share of ``vector_field`` (the stiff part, for IMEX solvers)."""
-        M = self.primary[0]
-        fp, zdot = self.coupling(s[2], s[3], s[4:])
-        zero = jnp.zeros((), s.dtype)
-        return jnp.concatenate(
-            [jnp.stack([zero, fp / M, zero, -fp / self.absorber_mass - fp / M]), zdot]
-        )
 
     def mechanical_energy(self, s):
         """Kinetic + potential energy [J] of internal state ``s`` (exact contact potential)."""
@@ -217,6 +239,30 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         return self.contact.dissipated_power(u - self.gap, w) + self.contact.dissipated_power(
             -u - self.gap, -w
         )
+
+    def length_floor(self):
+        return self.gap
+
+    def floats(self, u_max):
+        # never touching a wall: its free position and velocity give a structural double
+        # multiplier 1 (a Jordan block, split by ~sqrt(rounding) numerically)
+        return u_max < self.gap
+
+    def linear_guess(self, forcing):
+        """The primary alone with the absorber floating at rest in the middle of the cavity
+        if that motion stays inside the clearance, else the tuned-mass damper with the
+        contact law's secant stiffness and damping at a penetration of the gap's size."""
+        F0, w = forcing.amplitude, forcing.omega
+        X1 = F0 / (self.k - w**2 * self.M + 1j * w * self.c)
+        zero = jnp.zeros(())
+        free = _internal(jnp.stack([jnp.imag(X1), zero]), jnp.stack([w * jnp.real(X1), zero]))
+        d = jnp.maximum(self.gap, 1e-3)
+        k_c = self.contact.elastic_force(d) / d
+        c_c = self.contact.viscous_force(d, 1.0)
+        Q = harmonic_response(*two_mass_matrices(self.M, self.m, self.k, self.c, k_c, c_c),
+                              jnp.array([1.0, 0.0]), F0, w)
+        tmd = _internal(*state_at_zero(Q, w))
+        return finite_or_zero(jnp.where(jnp.abs(X1) < self.gap, free, tmd))
 
     def stiffness_rate(self):
         meff = self.M * self.m / (self.M + self.m)
@@ -342,14 +388,16 @@ class FrictionAbsorber(AbstractAbsorberSystem):
 
     def switch_function(self, t, s, forcing, mode):
         # stick: holding force over the breakaway limit; slip: Ẋ reversing.  Both are made
-        # dimensionless (by the limit, and by the velocity scale F0 ω / (k1 + m1 ω²) of the
-        # forced primary), homogeneous of degree 0 in (F0, N): the event root finder's
-        # tolerance then means the same for every scale of motion
+        # dimensionless (by the limit plus the holding-force scale F0 m2 / (m1 + m2) of the
+        # forced pair, never zero even at N = 0, and by the velocity scale F0 ω / (k1 + m1 ω²)
+        # of the forced primary), homogeneous of degree 0 in (F0, N): the event root
+        # finder's tolerance then means the same for every scale of motion
         cap = self.friction.breakaway_force(self.normal_force)
         f = self.holding_force(t, s, forcing)
         w = forcing.omega
+        f_ref = cap + forcing.amplitude * self.m2 / (self.m1 + self.m2)
         v_ref = forcing.amplitude * w / (self.k1 + self.m1 * w**2)
-        return jnp.where(mode == 0, (jnp.abs(f) - cap) / jnp.maximum(cap, 1e-300),
+        return jnp.where(mode == 0, (jnp.abs(f) - cap) / jnp.maximum(f_ref, 1e-300),
                          mode * s[3] / jnp.maximum(v_ref, 1e-30))
 
     def next_mode(self, t, s, forcing, mode):
@@ -360,6 +408,23 @@ class FrictionAbsorber(AbstractAbsorberSystem):
         f = self.holding_force(t, s, forcing)
         new = jnp.where(mode == 0, jnp.where(f > 0, 1, -1), self._holding_mode(t, s, forcing))
         return new, s
+
+    def law_state_scale(self):
+        return self.friction.state_scale(self.normal_force)
+
+    def linear_guess(self, forcing):
+        """The two masses stuck together if the friction force needed stays below the
+        kinetic level of the law, else the absorber sliding freely (N = 0)."""
+        F0, w = forcing.amplitude, forcing.omega
+        Xs = F0 / (self.k1 - w**2 * (self.m1 + self.m2) + 1j * w * self.c1)
+        stuck = _internal(jnp.stack([jnp.imag(Xs)] * 2), jnp.stack([w * jnp.real(Xs)] * 2))
+        need = self.m2 * w**2 * jnp.abs(Xs)  # friction force that keeps the absorber stuck
+        Q = harmonic_response(*two_mass_matrices(self.m1, self.m2, self.k1, self.c1, self.k2,
+                                                 self.c2), jnp.array([1.0, 0.0]), F0, w)
+        free = _internal(*state_at_zero(Q, w))
+        base = jnp.where(need <= self.friction.kinetic_level(self.normal_force), stuck, free)
+        z0 = jnp.zeros((self.num_law_states,), base.dtype)
+        return finite_or_zero(jnp.concatenate([base, z0]))
 
     def stiffness_rate(self):
         meff = self.m1 * self.m2 / (self.m1 + self.m2)

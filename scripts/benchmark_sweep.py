@@ -97,22 +97,33 @@ def numpy_rhs(system):
 def scipy_march(system, F0, w):
     f, n = numpy_rhs(system)
     T = 2 * np.pi / w
-    y = np.zeros(n)
-    hist, calm = [], 0
-    for k in range(MAX_PERIODS):
-        sol = solve_ivp(f, (k * T, (k + 1) * T), y, method="DOP853", rtol=1e-8, atol=1e-11,
-                        args=(F0, w))
-        y = sol.y[:, -1]
-        hist.append(y.copy())
+    y = [np.zeros(n)]
+
+    def period(k):
+        y[0] = solve_ivp(f, (k * T, (k + 1) * T), y[0], method="DOP853", rtol=1e-8,
+                         atol=1e-11, args=(F0, w)).y[:, -1]
+        return y[0]
+
+    periods = march_until_settled(period, TOL, MAX_PERIODS)
+    ts = np.linspace(0, T, 513)
+    sol = solve_ivp(f, (0, T), y[0], method="DOP853", rtol=1e-10, atol=1e-13, args=(F0, w),
+                    t_eval=ts)
+    return 0.5 * np.ptp(sol.y[0]), periods
+
+
+def march_until_settled(period, tol, max_periods):
+    """Call ``period(k)`` (one forcing period from ``kT``, returning the Poincaré sample)
+    until the samples change by < ``tol`` relative to their recent size for 3 periods in a
+    row; returns the number of periods marched."""
+    hist, calm, k = [], 0, 0
+    for k in range(max_periods):
+        hist.append(np.array(period(k)))
         if k > 0:
             scale = np.max(np.abs(np.array(hist[-20:])), axis=0) + 1e-12
-            calm = calm + 1 if np.max(np.abs(hist[-1] - hist[-2]) / scale) < TOL else 0
+            calm = calm + 1 if np.max(np.abs(hist[-1] - hist[-2]) / scale) < tol else 0
             if calm >= 3:
                 break
-    ts = np.linspace(0, T, 513)
-    sol = solve_ivp(f, (0, T), y, method="DOP853", rtol=1e-10, atol=1e-13, args=(F0, w),
-                    t_eval=ts)
-    return 0.5 * np.ptp(sol.y[0]), k + 1
+    return k + 1
 
 
 def stickslip_march(w, rtol, tol, s=None, mode=0, max_periods=MAX_PERIODS):
@@ -125,21 +136,19 @@ def stickslip_march(w, rtol, tol, s=None, mode=0, max_periods=MAX_PERIODS):
     model = StickSlip(p["m1"], p["k1"], p["c1"], p["m2"], p["k2"], p["c2"], 0.5, 0.5, np.inf,
                       4.0, 20.0, w, rtol=rtol, atol=rtol * 1e-3)
     T = 2 * np.pi / w
-    s = np.zeros(4) if s is None else s
-    hist, calm, k = [], 0, 0
-    for k in range(max_periods):
-        s, mode = model.run(s, mode, k * T, (k + 1) * T)
-        hist.append(s.copy())
-        if k > 0:
-            scale = np.max(np.abs(np.array(hist[-20:])), axis=0) + 1e-12
-            calm = calm + 1 if np.max(np.abs(hist[-1] - hist[-2]) / scale) < tol else 0
-            if calm >= 3:
-                break
+    state = [np.zeros(4) if s is None else s, mode]
+
+    def period(k):
+        state[:] = model.run(state[0], state[1], k * T, (k + 1) * T)
+        return state[0]
+
+    periods = march_until_settled(period, tol, max_periods)
+    s, mode = state
     ts = np.linspace(0.0, T, 2049)
     out_t, out_s = [], []
     model.run(s, mode, 0.0, T, ts, out_t, out_s)  # the forcing is T-periodic
     x1 = np.concatenate(out_s)[:, 0]
-    return 0.5 * np.ptp(x1), s, mode, k + 1
+    return 0.5 * np.ptp(x1), s, mode, periods
 
 
 def stickslip_row(points, scipy_points):

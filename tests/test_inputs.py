@@ -80,6 +80,16 @@ def test_bad_simulate_input():
         aj.simulate(system, forcing, 1.0, rtol=0.0)
     with pytest.raises(ValueError, match="solver must be one of"):
         aj.simulate(system, forcing, 1.0, solver="euler-ish")
+    # KenCarp is not offered (it failed on every scene), by name or as an object
+    with pytest.raises(ValueError, match="solver must be one of"):
+        aj.simulate(system, forcing, 1.0, solver="kencarp4")
+    import diffrax
+
+    with pytest.raises(ValueError, match="KenCarp4 is not supported"):
+        aj.simulate(system, forcing, 1.0, solver=diffrax.KenCarp4())
+    # energy bookkeeping needs the smoothed law; the exact one says so
+    with pytest.raises(ValueError, match="energy=True is not available"):
+        aj.simulate(friction(), aj.Harmonic(amplitude=1.0, omega=50.0), 1.0, energy=True)
     with pytest.raises(ValueError, match="system must be"):
         aj.simulate(forcing, forcing, 1.0)
 

@@ -24,10 +24,13 @@ from ._helpers import (  # noqa: E402
     linear_restitution,
 )
 from ._linear import linear_guess  # noqa: E402
+from ._marching import Marching  # noqa: E402
+from ._method import AbstractSteadyMethod  # noqa: E402
 from ._params import get_param, parameter_names, replace_params  # noqa: E402
+from ._shooting import Shooting  # noqa: E402
 from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._status import Status, describe  # noqa: E402
-from ._steady import SteadyState, steady_state  # noqa: E402
+from ._steady import SteadyState, solve_point, steady_state  # noqa: E402
 from ._sweep import FrequencyResponse, frequency_response  # noqa: E402
 from ._system import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 
@@ -37,7 +40,8 @@ __all__ = [
     "AbstractAbsorberSystem", "AbstractContactLaw", "AbstractForcing", "AbstractFrictionLaw",
     "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
-    "FrequencyResponse", "SteadyState", "frequency_response", "get_param", "linear_guess",
+    "FrequencyResponse", "SteadyState", "frequency_response", "Shooting", "Marching",
+    "AbstractSteadyMethod", "solve_point", "get_param", "linear_guess",
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
     "band_objective", "smooth_max", "plot_tuning",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",

@@ -35,10 +35,10 @@ import numpy as np
 
 from ._checks import check_scalar, require_x64
 from ._forcing import Harmonic
-from ._linear import linear_guess
 from ._params import get_param, replace_params, resolve
+from ._shooting import Shooting
 from ._status import Status
-from ._steady import make_config, shoot, state_scale
+from ._steady import make_config, solve_point
 
 OBJECTIVES = ("peak", "mean_square", "amplitude")
 _TRACES = {"tune_step": 0}
@@ -82,13 +82,11 @@ class Reparam(eqx.Module):
 def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
     """Steady primary amplitudes at ``omegas`` (vmapped shooting, differentiable in forward
     mode). ``guesses``: internal states (NaN: use the linear guess)."""
+    method = Shooting(tol=tol, newton_steps=newton_steps, retry=False)
 
     def one(w, g):
         forcing = Harmonic(amplitude=amplitude, omega=w)
-        scale = state_scale(system, forcing)
-        s0 = jnp.where(jnp.all(jnp.isfinite(g)), g, linear_guess(system, forcing))
-        res = shoot(system, forcing, s0 / scale, 1, cfg, tol=tol, newton_steps=newton_steps,
-                    with_floquet=False)
+        res = solve_point(system, forcing, method, cfg, guess=g, with_floquet=False)
         return res.amplitude, system.to_internal(res.state), res.status, res.period_multiple
 
     return jax.vmap(one)(omegas, guesses)
@@ -150,14 +148,13 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
     sysp = replace_params(system, dict(zip(names, p)), check=False)
     bad = np.flatnonzero(status != Status.SUCCESS)
     seeds = np.where((status == Status.SUCCESS)[:, None], states, np.nan)
-    opts = (("tol", float(tol)), ("newton_steps", int(newton_steps)), ("n_max", 6),
-            ("max_periods", 4000), ("chunk", 40), ("floquet", False), ("root", "newton"))
+    method = Shooting(tol=float(tol), newton_steps=int(newton_steps))
     for start in range(0, bad.size, RETRY_BATCH):
         idx = bad[start:start + RETRY_BATCH]
         pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
         out = _retry_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
                            jnp.asarray(amplitude, dtype=float),
-                           jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, 1, names, opts)
+                           jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, method, names, False)
         st, pub = np.asarray(out.status)[:idx.size], np.asarray(out.state)[:idx.size]
         for j, i in enumerate(idx):
             if st[j] == Status.SUCCESS:

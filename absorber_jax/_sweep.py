@@ -13,11 +13,10 @@ import numpy as np
 
 from ._checks import check_scalar, check_time_grid, require_x64
 from ._forcing import Harmonic
-from ._linear import linear_guess
 from ._params import replace_params, resolve
 from ._simulate import choose_solver
 from ._status import Status, describe
-from ._steady import make_config, march, march_then_shoot, shoot, state_scale
+from ._steady import make_config, march_then_shoot, resolve_method, solve_point
 from ._system import AbstractAbsorberSystem
 
 FIELDS = ("amplitude", "rms", "harmonic", "absorber_amplitude", "absorber_rms",
@@ -79,19 +78,9 @@ def _forcing(amplitude, omega):
     return Harmonic(amplitude=amplitude, omega=omega)
 
 
-def _one_point(system, omega, amplitude, guess, cfg, method, n, opts):
-    forcing = _forcing(amplitude, omega)
-    scale = state_scale(system, forcing)
-    if method == "shooting":
-        lin = linear_guess(system, forcing)
-        s0 = jnp.where(jnp.all(jnp.isfinite(guess)), guess, lin)
-        return shoot(system, forcing, s0 / scale, n, cfg, tol=opts["tol"],
-                     newton_steps=opts["newton_steps"], with_floquet=opts["floquet"],
-                     root=opts["root"])
-    s0 = jnp.where(jnp.all(jnp.isfinite(guess)), guess, system.rest_state())
-    return march(system, forcing, s0 / scale, cfg, n_max=opts["n_max"], tol=opts["tol"],
-                 max_periods=opts["max_periods"], chunk=opts["chunk"],
-                 with_floquet=opts["floquet"])
+def _one_point(system, omega, amplitude, guess, cfg, method, with_floquet):
+    return solve_point(system, _forcing(amplitude, omega), method, cfg, guess=guess,
+                       with_floquet=with_floquet)
 
 
 # failed shooting points are retried in vmapped batches of this size (one compilation)
@@ -104,23 +93,18 @@ FIRST_PASS_NEWTON = 8
 
 
 @eqx.filter_jit
-def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, n, names, opts):
+def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, method, names, with_floquet):
     def point(w, pv, g):
-        sysp = _with(system, names, pv)
-        return _one_point(sysp, w, amplitude, g, cfg, "shooting", n, dict(opts))
+        return _one_point(_with(system, names, pv), w, amplitude, g, cfg, method, with_floquet)
 
     return jax.vmap(point)(omegas, pvals, guesses)
 
 
 @eqx.filter_jit
-def _retry_chunk(system, omegas, amplitude, pvals, cfg, n, names, opts):
+def _retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
     def point(w, pv):
-        sysp = _with(system, names, pv)
-        o = dict(opts)
-        return march_then_shoot(sysp, _forcing(amplitude, w), cfg, n=n, tol=o["tol"],
-                                newton_steps=o["newton_steps"], n_max=o["n_max"],
-                                max_periods=o["max_periods"], chunk=o["chunk"],
-                                with_floquet=o["floquet"], root=o["root"])
+        return march_then_shoot(_with(system, names, pv), _forcing(amplitude, w), cfg, method,
+                                with_floquet=with_floquet)
 
     return jax.vmap(point)(omegas, pvals)
 
@@ -146,24 +130,27 @@ def _in_batches(res, bad, solve, desc, progress):
     return res
 
 
-def _finish_stragglers(system, res, W, PV, amp, cfg, n, names, opts, progress, retry):
-    """After the vmapped first pass: resume Newton where it ran out of first-pass steps,
-    then (``retry``) re-solve what still failed by marching then shooting."""
+def _finish_stragglers(system, res, W, PV, amp, cfg, method, names, with_floquet, progress):
+    """After the vmapped first pass: resume the lanes still iterating from their last
+    iterate (``method.resume``), then (``method.retry``) re-solve what still failed by
+    marching then shooting."""
     res = jax.tree_util.tree_map(np.array, res)  # writable copies
-    o = dict(opts)
-    if o["newton_steps"] > FIRST_PASS_NEWTON:
-        rest = tuple((k, o["newton_steps"] - FIRST_PASS_NEWTON if k == "newton_steps" else v)
-                     for k, v in opts)
+    rest = method.resume(FIRST_PASS_NEWTON)
+    if rest is not None:
         slow = np.flatnonzero(res.status == Status.NO_CONVERGENCE)
+
+        def guesses(p):
+            return jnp.asarray(np.stack([np.asarray(
+                _with(system, names, PV[i]).to_internal(res.state[i])) for i in p]))
+
         res = _in_batches(res, slow, lambda p: _resume_chunk(
-            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]),
-            jnp.asarray(np.stack([np.asarray(_with(system, names, PV[i]).to_internal(
-                res.state[i])) for i in p])), cfg, n, names, rest), "resume", progress)
-    if retry:
+            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), guesses(p), cfg, rest, names,
+            with_floquet), "resume", progress)
+    if method.retry:
         bad = np.flatnonzero(res.status != Status.SUCCESS)
         res = _in_batches(res, bad, lambda p: _retry_chunk(
-            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, n, names, opts),
-            "retry", progress)
+            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
+            with_floquet), "retry", progress)
     return res
 
 
@@ -172,18 +159,18 @@ def _with(system, names, values):
 
 
 @eqx.filter_jit
-def _parallel_chunk(system, omegas, amplitude, pvals, cfg, method, n, names, opts):
+def _parallel_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
     nan = jnp.full((system.num_states,), jnp.nan)
 
     def point(w, pv):
-        sysp = _with(system, names, pv)
-        return _one_point(sysp, w, amplitude, nan, cfg, method, n, dict(opts))
+        return _one_point(_with(system, names, pv), w, amplitude, nan, cfg, method,
+                          with_floquet)
 
     return jax.vmap(point)(omegas, pvals)
 
 
 @eqx.filter_jit
-def _sequential_chunk(system, omegas, amplitude, pvals, carry, cfg, method, n, names, opts):
+def _sequential_chunk(system, omegas, amplitude, pvals, carry, cfg, method, names, with_floquet):
     """lax.scan along the frequency axis (vmapped over designs), each point seeded from the
     previous point's orbit when that one converged."""
 
@@ -191,7 +178,7 @@ def _sequential_chunk(system, omegas, amplitude, pvals, carry, cfg, method, n, n
         sysp = _with(system, names, pv)
 
         def step(s_prev, w):
-            res = _one_point(sysp, w, amplitude, s_prev, cfg, method, n, dict(opts))
+            res = _one_point(sysp, w, amplitude, s_prev, cfg, method, with_floquet)
             s_int = sysp.to_internal(res.state)
             nxt = jnp.where(res.status == Status.SUCCESS, s_int, jnp.nan)
             return nxt, res
@@ -203,17 +190,18 @@ def _sequential_chunk(system, omegas, amplitude, pvals, carry, cfg, method, n, n
 
 
 def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, method="shooting",
-                       n=1, params=None, direction="parallel", chunk_size=64, progress=False,
-                       shard=True, tol=None, n_max=6, newton_steps=40, max_periods=4000,
-                       chunk=40, floquet=True, solver=None, rtol=1e-9, atol=1e-9,
-                       max_steps=200_000, root="newton", retry=True):
+                       params=None, direction="parallel", chunk_size=64, progress=False,
+                       shard=True, floquet=True, solver=None, rtol=1e-9, atol=1e-9,
+                       max_steps=200_000, n=None, tol=None, n_max=None, newton_steps=None,
+                       max_periods=None, chunk=None, root=None, retry=None):
     """Steady-state frequency response of ``system`` under ``amplitude·sin(ωt)`` for every
     ``ω`` in ``omegas`` [rad/s], in one jit-compiled vmapped call per chunk.
 
     **Arguments**
 
     - ``omegas``: sorted 1-D grid [rad/s]; ``amplitude``: force amplitude F0 [N].
-    - ``method``: ``"shooting"`` (default) or ``"marching"`` (see :func:`steady_state`).
+    - ``method``: :class:`Shooting` (default) or :class:`Marching`, as an object or by name
+      with its options as keywords (see :func:`steady_state`).
     - ``params``: optional ``{name: 1-D array}`` of designs (same length ``P``); names as in
       :mod:`absorber_jax._params` (``k1``, ``c1``, ``m``, ``gap``, ``N``, ...).  Results then
       have shape ``(P, F)``: a (design × frequency) grid in one call.
@@ -223,9 +211,10 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
       chunks); ``progress``: show a tqdm bar over chunks.
     - ``shard``: spread each chunk over all local devices with ``jax.sharding`` (when there
       are several).
-    - ``retry``: (parallel shooting) points whose shooting failed are re-solved after the
-      sweep by marching then shooting (:func:`march_then_shoot`), a few at a time, before
-      they are flagged.
+    - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
+      ``FIRST_PASS_NEWTON`` Newton steps, the lanes still iterating resume from their last
+      iterate a few at a time, and (``retry``, the default) the points that still failed are
+      re-solved by marching then shooting (:func:`march_then_shoot`) before they are flagged.
     - the remaining keywords as in :func:`steady_state`.
 
     ```python
@@ -244,24 +233,22 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
     if om[0] <= 0:
         raise ValueError(f"omegas must be > 0 [rad/s], got {om[0]:g}")
     check_scalar("frequency_response", "amplitude", amplitude, lo=0.0)
-    if method not in ("shooting", "marching"):
-        raise ValueError(f"method must be 'shooting' or 'marching', got {method!r}")
+    method = resolve_method(method, "frequency_response", n=n, tol=tol, n_max=n_max,
+                            newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
+                            root=root, retry=retry)
     if direction not in ("parallel", "up", "down", "both"):
         raise ValueError(f"direction must be 'parallel', 'up', 'down' or 'both', got {direction!r}")
     if not isinstance(chunk_size, int) or chunk_size < 1:
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
     if direction == "both":
-        kw = dict(amplitude=amplitude, method=method, n=n, params=params, chunk_size=chunk_size,
-                  progress=progress, shard=shard, tol=tol, n_max=n_max,
-                  newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
-                  floquet=floquet, solver=solver, rtol=rtol, atol=atol, max_steps=max_steps,
-                  root=root, retry=retry)
+        kw = dict(amplitude=amplitude, method=method, params=params, chunk_size=chunk_size,
+                  progress=progress, shard=shard, floquet=floquet, solver=solver, rtol=rtol,
+                  atol=atol, max_steps=max_steps)
         return (frequency_response(system, om, direction="up", **kw),
                 frequency_response(system, om, direction="down", **kw))
 
     names, pvals = _check_params(system, params)
     P = pvals.shape[0]
-    tol = (1e-6 if method == "shooting" else 1e-5) if tol is None else float(tol)
     if solver is None or solver == "auto":
         # one solver serves the whole grid: implicit if any design is stiff at the lowest
         # frequency (the longest period: the most explicit steps per period)
@@ -271,12 +258,8 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
                     for d in designs) if names else choose_solver(system, f0) != "tsit5"
         solver = "kvaerno5" if stiff else "tsit5"
     cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
-    opts = (("tol", tol), ("newton_steps", int(newton_steps)), ("n_max", int(n_max)),
-            ("max_periods", int(max_periods)), ("chunk", int(chunk)), ("floquet", bool(floquet)),
-            ("root", root))
     amp = jnp.asarray(amplitude, dtype=float)
-    first_opts = tuple((k, min(v, FIRST_PASS_NEWTON) if k == "newton_steps" else v)
-                       for k, v in opts)
+    floquet = bool(floquet)
     order = om if direction != "down" else om[::-1]
 
     from tqdm.auto import tqdm
@@ -289,6 +272,7 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
         size = min(chunk_size, total)
         ndev = jax.local_device_count() if shard else 1
         size = int(math.ceil(size / ndev) * ndev)
+        first = method.first_pass(FIRST_PASS_NEWTON)
         out = []
         for start in tqdm(range(0, total, size), desc="sweep", disable=not progress):
             w = W[start:start + size]
@@ -298,13 +282,11 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
                 w = np.concatenate([w, np.repeat(w[-1:], pad)])
                 pv = np.concatenate([pv, np.repeat(pv[-1:], pad, axis=0)])
             w, pv = _place(jnp.asarray(w), ndev), _place(jnp.asarray(pv), ndev)
-            res = _parallel_chunk(system, w, amp, pv, cfg, method, n, names, first_opts)
+            res = _parallel_chunk(system, w, amp, pv, cfg, first, names, floquet)
             keep = size - pad
             out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:k], res))
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
-        if method == "shooting":
-            res = _finish_stragglers(system, res, W, PV, amp, cfg, n, names, opts, progress,
-                                     retry)
+        res = _finish_stragglers(system, res, W, PV, amp, cfg, method, names, floquet, progress)
         res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(order)) + a.shape[1:]), res)
     else:
         carry = jnp.full((P, system.num_states), jnp.nan)
@@ -318,7 +300,7 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
             if pad:
                 w = np.concatenate([w, np.repeat(w[-1:], pad)])
             carry, res = _sequential_chunk(system, jnp.asarray(w), amp, pv, carry, cfg, method,
-                                           n, names, opts)
+                                           names, floquet)
             keep = size - pad
             out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)

@@ -126,3 +126,20 @@ def test_float32_is_refused_with_a_clear_error():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "NO ERROR" not in out.stdout and "refused" in out.stdout
+
+
+def test_methods_are_objects_with_checked_options():
+    system, forcing = aj.presets.impact("kelvin_voigt")
+    with pytest.raises(ValueError, match=r"Shooting\.tol must be in \(0, inf\)"):
+        aj.Shooting(tol=0.0)
+    with pytest.raises(ValueError, match=r"Shooting\.n must be an integer in \[1, 64\]"):
+        aj.Shooting(n=0)
+    with pytest.raises(ValueError, match=r"Marching\.max_periods must be a positive integer"):
+        aj.Marching(max_periods=0)
+    with pytest.raises(ValueError, match="root solver must be"):
+        aj.Shooting(root="bisection")
+    # options go on the object, not beside it
+    with pytest.raises(ValueError, match=r"give \['tol'\] on the method object"):
+        aj.steady_state(system, forcing, method=aj.Shooting(), tol=1e-8)
+    with pytest.raises(ValueError, match="method must be 'shooting', 'marching'"):
+        aj.frequency_response(system, [40.0, 50.0], amplitude=2.0, method="hb")

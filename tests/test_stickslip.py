@@ -215,3 +215,12 @@ def test_smoothed_law_with_explicit_solver_gets_the_monodromy_right():
                                    atol=2e-3)
         np.testing.assert_allclose(float(ss.amplitude), float(exact.amplitude), rtol=1e-4)
     assert int(aj.steady_state(system, FORCING, retry=False).iterations) <= 8
+
+
+def test_method_objects_equal_their_keyword_spelling():
+    by_object = aj.steady_state(scene(), FORCING, method=aj.Shooting(tol=1e-8, newton_steps=20))
+    by_name = aj.steady_state(scene(), FORCING, method="shooting", tol=1e-8, newton_steps=20)
+    np.testing.assert_array_equal(np.asarray(by_object.state), np.asarray(by_name.state))
+    one = aj.solve_point(scene(), FORCING, aj.Marching(),
+                         make_config(scene(), FORCING, None, 1e-9, 1e-9, 200_000))
+    np.testing.assert_allclose(float(one.amplitude), float(by_name.amplitude), rtol=1e-6)

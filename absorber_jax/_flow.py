@@ -1,0 +1,163 @@
+"""The flow of a system over forcing periods and its derivatives: the one place that
+integrates for the steady-state layer (shooting, marching, orbit statistics).
+
+States are the *internal* state scaled to order one (``system.state_scale``: positions by
+a length ``L``, velocities by ``Lω``) so that one tolerance means the same thing for every
+component.  Derivatives are forward mode (shooting's Jacobian, Floquet multipliers, design
+gradients): through diffrax ``ForwardMode`` for explicit solvers on non-stiff scenes; by
+forward sensitivity equations for implicit solvers and for explicit ones on stiff-ish scenes
+(steps then controlled on the tangents too); through the event times for hybrid systems
+(:mod:`absorber_jax._stickslip`).
+"""
+
+from __future__ import annotations
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+
+from ._checks import is_traced
+from ._simulate import _resolve_solver
+from ._status import Status, from_diffrax
+from ._stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
+
+# stick–slip segments allowed in one integration (the loop ends at t1 long before, unless
+# the motion chatters)
+MAX_SEGMENTS = SEGMENTS_PER_PERIOD * 64
+
+
+class _Config(eqx.Module):
+    solver: diffrax.AbstractSolver
+    rtol: float = eqx.field(static=True)
+    atol: float = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
+    # derivatives of the flow by sensitivity equations whose steps are controlled on the
+    # tangents too (explicit solvers on stiff-ish scenes, see make_config)
+    tangent_control: bool = eqx.field(static=True, default=False)
+
+
+# An explicit solver's monodromy is taken from sensitivity equations with steps controlled on
+# the tangents as well as the state once (largest linearised rate × period) exceeds this.
+# Below it, diffrax ForwardMode (state-controlled steps, ~4x cheaper) is right; above it
+# the stiff direction has decayed in the state, so the state's error estimate lets the steps
+# reach the edge of the explicit stability region, where the O(1) tangent seeded in that
+# direction grows: the issue's stick–slip case (smoothed Coulomb eps = 1e-4, 70 rad/s, λT =
+# 2e4) had |μ| = 1e66 from shooting and 2.8e9 from marching on a stable orbit (|μ| = 0.86).
+TANGENT_CONTROL_STEPS_PER_PERIOD = 2.0e3
+
+
+def state_scale(system, forcing):
+    """Per-component scale of the internal state (the system's own, see
+    :meth:`AbstractAbsorberSystem.state_scale`)."""
+    return system.state_scale(forcing)
+
+
+def _scaled_rate(dyn, t, x):
+    system, forcing = dyn
+    scale = state_scale(system, forcing)
+    return system.vector_field(t, x * scale, forcing) / scale
+
+
+def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
+    saveat = diffrax.SaveAt(t1=True) if ts is None else diffrax.SaveAt(ts=ts)
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(rate), cfg.solver, t0, t1, None, x0, saveat=saveat,
+        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol, norm=norm),
+        max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
+    )
+    return sol.ys, from_diffrax(sol.result)
+
+
+def _integrate(dyn, x0, t0, t1, ts, cfg):
+    """Scaled states of ``dyn`` from ``x0`` at ``t0`` saved at ``ts`` (or at ``t1`` only when
+    ``ts`` is None), and the status: smooth systems by one diffrax solve, hybrid ones
+    (exact stick–slip) segment by segment (:mod:`absorber_jax._stickslip`)."""
+    system, forcing = dyn
+    if system.hybrid:
+        ys, x, status, _, _ = hybrid_solve(
+            system, forcing, x0, t0, t1, ts, solver=cfg.solver, rtol=cfg.rtol, atol=cfg.atol,
+            max_steps=cfg.max_steps, scale=state_scale(system, forcing),
+            max_segments=MAX_SEGMENTS)
+        return (x[None] if ts is None else ys), status
+    return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, t0, t1, ts, cfg)
+
+
+def _flow(dyn, x0, t1, ts, *, cfg):
+    """Scaled states of ``dyn = (system, forcing)`` from ``x0`` at ``t = 0`` saved at ``ts``
+    (or at ``t1`` only when ``ts`` is None), and the integrator's status; differentiable in
+    forward mode (shooting's Jacobian, Floquet multipliers, design gradients).
+
+    An explicit solver is differentiated through its steps (diffrax ``ForwardMode``: the
+    state is integrated once, its tangents ride along).  An implicit solver is not, see
+    :func:`_flow_sensitivity`."""
+    implicit = isinstance(cfg.solver, diffrax.AbstractImplicitSolver)
+    if (implicit or cfg.tangent_control) and not dyn[0].hybrid:
+        return _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
+    return _integrate(dyn, x0, 0.0, t1, ts, cfg)
+
+
+@eqx.filter_custom_jvp
+def _flow_sensitivity(dyn, x0, t1, ts, *, cfg):
+    """:func:`_flow` for implicit solvers.  Its derivatives (in ``x0``, the system's and
+    forcing's parameters and the times) are the forward sensitivity equations
+    ``δẋ = ∂f/∂x δx + ∂f/∂p δp``, integrated together with the state by the same solver
+    (steps controlled on the state), rather than derivatives of the solver's internals: no
+    derivative ever passes through an implicit solver's stage Newton solve (whose
+    forward-mode derivative raises inside lineax when a trial stage diverges, as on LuGre
+    with sigma0 >= 1e6).  Explicit solvers keep diffrax's ``ForwardMode``, which integrates
+    the state once for all tangent directions."""
+    return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, 0.0, t1, ts, cfg)
+
+
+@_flow_sensitivity.def_jvp
+def _flow_sensitivity_jvp(primals, tangents, *, cfg):
+    dyn, x0, t1, ts = primals
+    t_dyn, t_x0, t_t1, t_ts = tangents
+    # the primal comes from its own state-only solve: jax.linearize (Newton) needs primal
+    # outputs computable without the tangents
+    ys, status = _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
+    t_x0 = jnp.zeros_like(x0) if t_x0 is None else t_x0
+
+    def augmented(t, y, a):
+        x, dx = y
+        # the sensitivity rate is linear in dx; its dependence on x is hidden from the
+        # implicit solver's Jacobian (stop_gradient), which is then block-diagonal: the
+        # second derivatives of the contact law (singular for Hertz at first contact) would
+        # otherwise stall the stage Newton iterations
+        _, df = eqx.filter_jvp(lambda x_, d_: _scaled_rate(d_, t, x_),
+                               (jax.lax.stop_gradient(x), dyn), (dx, t_dyn))
+        return _scaled_rate(dyn, t, x), df
+
+    # steps controlled on the state only: the sensitivities ride along, as in forward mode
+    # (explicit solvers with tangent_control: on the state and the tangents)
+    norm = optx.rms_norm if cfg.tangent_control else (lambda e: optx.rms_norm(e[0]))
+    (_, dys), st2 = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg, norm=norm)
+    # moving save times (they depend on the forcing period): add the state's rate there
+    t_save, t_times = (t1[None], t_t1) if ts is None else (ts, t_ts)
+    if t_times is not None:
+        f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)
+        dys = dys + f * jnp.reshape(t_times, (-1, 1))
+    # a sensitivity integration that failed gives no derivative (the status flags the point)
+    dys = jnp.where((st2 == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
+    return (ys, status), (dys, None)
+
+
+def period_map(system, forcing, x0, n, cfg: _Config, t0=0.0):
+    """Scaled state after ``n`` forcing periods from ``t = 0``, and the integrator's status
+    (``t0`` must be a multiple of the forcing period)."""
+    del t0
+    T = 2 * jnp.pi / forcing.omega
+    ys, status = _flow((system, forcing), x0, n * T, None, cfg=cfg)
+    return ys[-1], status
+
+
+def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000):
+    _, solver_obj = _resolve_solver(solver, system, forcing)
+    explicit = not isinstance(solver_obj, diffrax.AbstractImplicitSolver)
+    lam, period = system.stiffness_rate(), forcing.period
+    stiffish = (not is_traced(lam) and not is_traced(period)
+                and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
+    return _Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
+                   tangent_control=bool(explicit and stiffish and not system.hybrid))

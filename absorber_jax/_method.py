@@ -1,0 +1,39 @@
+"""How a periodic orbit is found: the base class of :class:`Shooting` and
+:class:`Marching` (objects that carry their own options, passed as ``method=``)."""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+
+
+class AbstractSteadyMethod(eqx.Module):
+    """A way to find a periodic orbit of a system under a harmonic forcing.
+
+    Generic code (``steady_state``, ``frequency_response``, ``tune``) talks to a method only
+    through these members."""
+
+    @abc.abstractmethod
+    def initial_state(self, system, forcing):
+        """The internal state the method starts from when no guess is given."""
+
+    @abc.abstractmethod
+    def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
+        """The :class:`SteadyState` from the *scaled* internal state ``x0`` (one orbit
+        solve, vmappable: nothing here retries or raises)."""
+
+    @property
+    @abc.abstractmethod
+    def retry(self) -> bool:
+        """Whether a failed solve is retried by marching then shooting."""
+
+    def first_pass(self, budget):
+        """The method for a sweep's vmapped pass, its iterations capped near ``budget`` so
+        that a chunk does not run at the pace of its slowest lane (default: itself)."""
+        return self
+
+    def resume(self, budget):
+        """The method that finishes, from their last iterate, the points still iterating
+        after ``first_pass(budget)``; None when there is nothing to resume."""
+        return None

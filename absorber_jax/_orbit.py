@@ -1,0 +1,110 @@
+"""Periodic orbits as results: amplitudes and harmonics over one response period, the
+Floquet multipliers and the stability label.
+
+Amplitudes (over one full response period ``nT``, from uniform samples refined by parabolic
+interpolation at the extremes; ``SAMPLES_PER_PERIOD`` per forcing period for the largest
+period multiple allowed): ``amplitude`` = half peak-to-peak of ``x1``; ``rms`` = RMS of
+``x1`` about zero; ``harmonic`` = magnitude of ``x1``'s component at the forcing frequency;
+``absorber_amplitude`` and ``absorber_rms`` the same for the absorber's motion relative to
+the primary (``x2 - x1``).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ._flow import _flow, period_map, state_scale
+from ._status import Status
+
+SAMPLES_PER_PERIOD = 256
+
+
+class SteadyState(eqx.Module):
+    """A periodic response (see the module docstring for the definitions).
+
+    ``state``: public state ``[x1, v1, x2, v2, (z)]`` on the orbit at ``t = 0 mod nT``;
+    ``multipliers``: Floquet multipliers of the period-``nT`` map; ``stable``: all
+    ``|μ| <= 1 + 1e-6``, except, on an orbit where the absorber floats without touching the
+    walls, the structural double multiplier 1 of its free position;
+    ``status``: :class:`Status`; ``iterations``: Newton steps (shooting) or periods marched.
+    """
+
+    amplitude: jax.Array
+    rms: jax.Array
+    harmonic: jax.Array
+    absorber_amplitude: jax.Array
+    absorber_rms: jax.Array
+    period_multiple: jax.Array
+    state: jax.Array
+    multipliers: jax.Array
+    stable: jax.Array
+    status: jax.Array
+    residual: jax.Array
+    iterations: jax.Array
+
+    @property
+    def ok(self):
+        return self.status == Status.SUCCESS
+
+
+def _parabolic_peak(y, i):
+    """Extreme value of the periodic samples ``y`` near index ``i`` (parabola through 3)."""
+    n = y.shape[0]
+    a, b, c = y[(i - 1) % n], y[i], y[(i + 1) % n]
+    den = a - 2 * b + c
+    return b - 0.125 * (a - c) ** 2 / jnp.where(den == 0, 1.0, den) * (den != 0)
+
+
+def _half_p2p(y):
+    return 0.5 * (_parabolic_peak(y, jnp.argmax(y)) - _parabolic_peak(y, jnp.argmin(y)))
+
+
+def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
+    """Amplitudes over one response period ``nT`` starting from scaled state ``x0``
+    (``n`` may be traced; ``n_cap`` is its static upper bound)."""
+    scale = state_scale(system, forcing)
+    T = 2 * jnp.pi / forcing.omega
+    N = SAMPLES_PER_PERIOD * n_cap
+    ts = jnp.arange(N) * (n * T / N)
+    ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg)
+    s = ys * scale
+    x1, u = s[:, 0], s[:, 2]
+    phase = jnp.exp(-1j * forcing.omega * ts)
+    harmonic = 2.0 * jnp.abs(jnp.mean(x1 * phase))
+    stats = dict(amplitude=_half_p2p(x1), rms=jnp.sqrt(jnp.mean(x1**2)), harmonic=harmonic,
+                 absorber_amplitude=_half_p2p(u), absorber_rms=jnp.sqrt(jnp.mean(u**2)))
+    return stats, st, jnp.max(jnp.abs(u))
+
+
+def floquet(system, forcing, x0, n, cfg):
+    """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD)."""
+    J = jax.jacfwd(lambda x: period_map(system, forcing, x, n, cfg)[0])(x0)
+    return jnp.linalg.eigvals(jax.lax.stop_gradient(J))
+
+
+def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
+            n_cap=1):
+    scale = state_scale(system, forcing)
+    stats, st2, umax = orbit_statistics(system, forcing, x, n, cfg, n_cap)
+    if with_floquet:
+        mult = floquet(system, forcing, x, n, cfg)
+    else:
+        mult = jnp.full((system.num_states,), jnp.nan + 0j)
+    # an absorber floating without touching the walls: its free position and velocity give a
+    # structural double multiplier 1 (a Jordan block, split by ~sqrt(rounding) numerically);
+    # stability is judged on the other multipliers
+    floating = system.floats(umax)
+    dist = jnp.abs(mult - 1.0)
+    structural = floating & (dist <= jnp.sort(dist)[1]) & (dist < 1e-2)
+    status = jnp.where(status == Status.SUCCESS, st2, status)
+    vals = jnp.stack([stats[k] for k in stats])
+    finite = jnp.all(jnp.isfinite(vals)) & jnp.all(jnp.isfinite(x))
+    status = jnp.where((status == Status.SUCCESS) & ~finite, Status.NONFINITE, status)
+    # a failed point (or multipliers not computed) is never called stable
+    stable = (jnp.all((jnp.abs(mult) <= 1.0 + 1e-6) | structural) & (status == Status.SUCCESS)
+              & jnp.all(jnp.isfinite(mult)))
+    return SteadyState(**stats, period_multiple=jnp.asarray(n), state=system.to_public(x * scale),
+                       multipliers=mult, stable=stable, status=status, residual=residual,
+                       iterations=jnp.asarray(iterations))

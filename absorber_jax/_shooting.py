@@ -1,0 +1,128 @@
+"""Shooting: Newton on the period-``n`` map, ``Φ_{nT}(s) - s = 0``.
+
+Newton's linear steps are solved by SVD (minimum norm): where the absorber floats without
+touching the walls (or sticks, its relative position frozen), the orbits form a family,
+``∂Φ/∂s - I`` is singular (a Floquet multiplier at exactly 1) and the minimum-norm step
+converges to the member of the family nearest the guess.  Gradients of the orbit come from
+the implicit function theorem on the shooting residual (optimistix ``ImplicitAdjoint``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import lineax as lx
+import optimistix as optx
+
+from ._checks import check_scalar
+from ._flow import period_map
+from ._method import AbstractSteadyMethod
+from ._orbit import _finish
+from ._status import Status
+
+
+@jax.custom_jvp
+def _finite_tangents(y):
+    return y
+
+
+@_finite_tangents.defjvp
+def _finite_tangents_jvp(primals, tangents):
+    # a non-finite tangent (an integration gone wrong at a trial Newton iterate) becomes 0, so
+    # the linear solve sees finite input; the iterate then fails to converge and is flagged
+    (y,), (dy,) = primals, tangents
+    return y, jnp.where(jnp.isfinite(dy), dy, 0.0)
+
+
+def _root_solver(name, tol):
+    if name == "newton":
+        # Newton with a minimum-norm (SVD) step: quadratic convergence, and the singular
+        # Jacobian of a floating absorber's orbit family is handled by the pseudo-inverse
+        return optx.Newton(rtol=tol, atol=tol, linear_solver=lx.SVD())
+    if name == "lm":
+        return optx.LevenbergMarquardt(rtol=tol, atol=tol)
+    raise ValueError(f"root solver must be 'newton' or 'lm', got {name!r}")
+
+
+def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_floquet=True,
+          root="newton"):
+    """Shooting from the scaled guess ``x_guess`` for a period-``n`` orbit."""
+
+    def residual(x, args):
+        sys_, forc_ = args
+        xn, st = period_map(sys_, forc_, x, n, cfg)
+        # a failed integration (max_steps, non-finite state) must not reach the linear solver
+        # (lineax raises on NaN even with throw=False): give Newton a zero residual with a
+        # zero Jacobian instead, so that it stops at once (a non-zero residual would make it
+        # repeat the same failing, possibly max_steps-long integration newton_steps times);
+        # the status below then flags the point
+        bad = (st != Status.SUCCESS) | ~jnp.all(jnp.isfinite(xn))
+        return _finite_tangents(jnp.where(bad, jnp.zeros_like(x), xn - x))
+
+    solver = _root_solver(root, 0.1 * tol)
+    # gradients of the orbit by the implicit function theorem on the shooting residual
+    # (forward mode; the minimum-norm SVD solve copes with a floating absorber's null space)
+    adjoint = optx.ImplicitAdjoint(linear_solver=lx.SVD())
+    x_guess = jax.lax.stop_gradient(x_guess)
+    if root == "newton":
+        sol = optx.root_find(residual, solver, x_guess, (system, forcing), max_steps=newton_steps,
+                             throw=False, adjoint=adjoint)
+    else:
+        sol = optx.least_squares(residual, solver, x_guess, (system, forcing),
+                                 max_steps=newton_steps, throw=False, adjoint=adjoint)
+    x = sol.value
+    xn, st = period_map(system, forcing, x, n, cfg)
+    res = jnp.max(jnp.abs(xn - x))
+    status = jnp.where(st != Status.SUCCESS, st,
+                       jnp.where(res <= tol, Status.SUCCESS, Status.NO_CONVERGENCE))
+    return _finish(system, forcing, x, n, cfg, status, res, sol.stats["num_steps"], with_floquet,
+                   n_cap=n)
+
+
+class Shooting(AbstractSteadyMethod):
+    """Newton shooting on the period-``n`` map (minimum-norm SVD steps).
+
+    **Arguments**
+
+    - ``n``: period multiple sought (1 = the forcing period).
+    - ``tol``: residual tolerance on the state scaled to order one (the period map of an
+      impacting orbit is accurate to ~1e-7 at the default rtol, which bounds what Newton
+      can reach).
+    - ``newton_steps``: Newton iteration budget.
+    - ``root``: ``"newton"`` (minimum-norm SVD steps) or ``"lm"`` (Levenberg–Marquardt).
+    - ``retry``: a failed solve is retried by marching from rest and polishing the marched
+      orbit by shooting, before it is flagged.
+    """
+
+    n: int = eqx.field(static=True, default=1)
+    tol: float = eqx.field(static=True, default=1e-6)
+    newton_steps: int = eqx.field(static=True, default=40)
+    root: str = eqx.field(static=True, default="newton")
+    retry: bool = eqx.field(static=True, default=True)
+
+    def __check_init__(self):
+        if not isinstance(self.n, int) or not 1 <= self.n <= 64:
+            raise ValueError(f"Shooting.n must be an integer in [1, 64], got {self.n!r}")
+        check_scalar("Shooting", "tol", self.tol, lo=0.0, lo_open=True)
+        if not isinstance(self.newton_steps, int) or self.newton_steps < 1:
+            raise ValueError("Shooting.newton_steps must be a positive integer, got "
+                             f"{self.newton_steps!r}")
+        _root_solver(self.root, 1.0)
+
+    def initial_state(self, system, forcing):
+        return system.linear_guess(forcing)
+
+    def first_pass(self, budget):
+        return dataclasses.replace(self, newton_steps=min(self.newton_steps, budget))
+
+    def resume(self, budget):
+        if self.newton_steps <= budget:
+            return None
+        return dataclasses.replace(self, newton_steps=self.newton_steps - budget)
+
+    def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
+        return shoot(system, forcing, x0, self.n, cfg, tol=self.tol,
+                     newton_steps=self.newton_steps, with_floquet=with_floquet, root=self.root)

@@ -3,14 +3,18 @@ integrates for the steady-state layer (shooting, marching, orbit statistics).
 
 States are the *internal* state scaled to order one (``system.state_scale``: positions by
 a length ``L``, velocities by ``Lω``) so that one tolerance means the same thing for every
-component.  Derivatives are forward mode (shooting's Jacobian, Floquet multipliers, design
-gradients): through diffrax ``ForwardMode`` for explicit solvers on non-stiff scenes; by
-forward sensitivity equations for implicit solvers and for explicit ones on stiff-ish scenes
-(steps then controlled on the tangents too); through the event times for hybrid systems
-(:mod:`absorber_jax._stickslip`).
+component.  Derivatives (shooting's Jacobian, Floquet multipliers, design gradients) are
+computed in forward mode: through diffrax ``ForwardMode`` for explicit solvers on non-stiff
+scenes; by forward sensitivity equations for implicit solvers and for explicit ones on
+stiff-ish scenes (steps then controlled on the tangents too); through the event times for
+hybrid systems (:mod:`absorber_jax._stickslip`).  The flow carries a custom JVP whose tangent
+is a linear map of the input tangents (the forward Jacobian applied to them), so JAX can
+transpose it: ``jax.grad`` works too and gives the forward-mode numbers.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import diffrax
 import equinox as eqx
@@ -32,10 +36,16 @@ class _Config(eqx.Module):
     solver: diffrax.AbstractSolver
     rtol: float = eqx.field(static=True)
     atol: float = eqx.field(static=True)
+    # integrator steps allowed per forcing period (an integration over n periods may take
+    # n times as many, see over_periods)
     max_steps: int = eqx.field(static=True)
     # derivatives of the flow by sensitivity equations whose steps are controlled on the
     # tangents too (explicit solvers on stiff-ish scenes, see make_config)
     tangent_control: bool = eqx.field(static=True, default=False)
+
+    def over_periods(self, n: int) -> _Config:
+        """The configuration of one integration over ``n`` forcing periods."""
+        return dataclasses.replace(self, max_steps=int(self.max_steps) * int(n))
 
 
 # An explicit solver's monodromy is taken from sensitivity equations with steps controlled on
@@ -84,14 +94,68 @@ def _integrate(dyn, x0, t0, t1, ts, cfg):
     return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, t0, t1, ts, cfg)
 
 
+@eqx.filter_custom_jvp
 def _flow(dyn, x0, t1, ts, *, cfg):
     """Scaled states of ``dyn = (system, forcing)`` from ``x0`` at ``t = 0`` saved at ``ts``
     (or at ``t1`` only when ``ts`` is None), and the integrator's status; differentiable in
-    forward mode (shooting's Jacobian, Floquet multipliers, design gradients).
+    forward *and* reverse mode (``jax.jacfwd``, ``jax.linearize``, ``jax.grad``).
 
-    An explicit solver is differentiated through its steps (diffrax ``ForwardMode``: the
-    state is integrated once, its tangents ride along).  An implicit solver is not, see
-    :func:`_flow_sensitivity`."""
+    Derivatives are forward sensitivities (:func:`_flow_forward`) with respect to the inputs
+    that carry a tangent, assembled into a Jacobian, whose product with the tangent is
+    linear in it: JAX transposes that product for reverse mode.  A design has a handful of
+    parameters and the state a handful of components, so this costs what forward mode costs
+    (one integration carrying ``len(x0) + #parameters`` tangents), with no backward
+    integration or checkpointing, and reverse mode gives the same numbers as forward mode.
+    """
+    return _flow_forward(dyn, x0, t1, ts, cfg=cfg)
+
+
+def _flat_inputs(primals, tangents):
+    """The inexact leaves of ``primals`` that carry a tangent, as one vector; a function that
+    puts such a vector back; and the tangents as one vector."""
+    is_none = lambda a: a is None  # noqa: E731
+    p_leaves, p_def = jax.tree_util.tree_flatten(primals, is_leaf=is_none)
+    t_leaves = jax.tree_util.tree_leaves(tangents, is_leaf=is_none)
+    active = [i for i, t in enumerate(t_leaves) if t is not None]
+    shapes = [jnp.shape(p_leaves[i]) for i in active]
+    sizes = [int(jnp.size(p_leaves[i])) for i in active]
+    vec = jnp.concatenate([jnp.ravel(jnp.asarray(p_leaves[i], dtype=float)) for i in active])
+    t_vec = jnp.concatenate([jnp.ravel(t_leaves[i]) for i in active])
+
+    def rebuild(v):
+        leaves, k = list(p_leaves), 0
+        for i, shape, size in zip(active, shapes, sizes):
+            leaves[i] = jnp.reshape(v[k:k + size], shape)
+            k += size
+        return jax.tree_util.tree_unflatten(p_def, leaves)
+
+    return vec, rebuild, t_vec
+
+
+@_flow.def_jvp
+def _flow_jvp(primals, tangents, *, cfg):
+    if all(t is None for t in jax.tree_util.tree_leaves(tangents, is_leaf=lambda a: a is None)):
+        return _flow_forward(*primals, cfg=cfg), (None, None)
+    vec, rebuild, t_vec = _flat_inputs(primals, tangents)
+
+    def states(v):
+        ys, status = _flow_forward(*rebuild(v), cfg=cfg)
+        return ys, (ys, status)
+
+    # the Jacobian depends on the primals only (jax.linearize evaluates it up front); the
+    # tangent is a matrix product, linear in t_vec and transposable
+    jac, (ys, status) = jax.jacfwd(states, has_aux=True)(vec)
+    # an integration gone wrong (at a trial Newton iterate, say) gives no derivative rather
+    # than a non-finite one: the status flags the point, and the linear solves downstream
+    # (lineax raises on NaN even with throw=False) see finite input
+    jac = jnp.where(jnp.isfinite(jac), jac, 0.0)
+    return (ys, status), (jnp.tensordot(jac, t_vec, axes=1), None)
+
+
+def _flow_forward(dyn, x0, t1, ts, *, cfg):
+    """:func:`_flow` differentiated in forward mode.  An explicit solver is differentiated
+    through its steps (diffrax ``ForwardMode``: the state is integrated once, its tangents
+    ride along).  An implicit solver is not, see :func:`_flow_sensitivity`."""
     implicit = isinstance(cfg.solver, diffrax.AbstractImplicitSolver)
     if (implicit or cfg.tangent_control) and not dyn[0].hybrid:
         return _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
@@ -144,17 +208,19 @@ def _flow_sensitivity_jvp(primals, tangents, *, cfg):
     return (ys, status), (dys, None)
 
 
-def period_map(system, forcing, x0, n, cfg: _Config, t0=0.0):
+def period_map(system, forcing, x0, n, cfg: _Config, t0=0.0, *, n_cap=None):
     """Scaled state after ``n`` forcing periods from ``t = 0``, and the integrator's status
-    (``t0`` must be a multiple of the forcing period)."""
+    (``t0`` must be a multiple of the forcing period; ``n`` may be traced when ``n_cap``,
+    its static upper bound, is given)."""
     del t0
     T = 2 * jnp.pi / forcing.omega
-    ys, status = _flow((system, forcing), x0, n * T, None, cfg=cfg)
+    cfg_n = cfg.over_periods(n if n_cap is None else n_cap)
+    ys, status = _flow((system, forcing), x0, n * T, None, cfg=cfg_n)
     return ys[-1], status
 
 
 def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000):
-    _, solver_obj = _resolve_solver(solver, system, forcing)
+    _, solver_obj = _resolve_solver(solver, system, forcing, rtol)
     explicit = not isinstance(solver_obj, diffrax.AbstractImplicitSolver)
     lam, period = system.stiffness_rate(), forcing.period
     stiffish = (not is_traced(lam) and not is_traced(period)

@@ -62,6 +62,13 @@ class AbstractFrictionLaw(eqx.Module):
     def stiffness_rate(self, normal_force, meff):
         """A rough largest rate [1/s] the law adds to the dynamics (solver choice)."""
 
+    def oscillation_rate(self, normal_force, meff):
+        """Angular frequency [rad/s] of a lightly damped fast oscillation the law adds (a
+        bristle mode), which any solver must resolve step by step at tight tolerances
+        (solver choice; 0 when the law has none)."""
+        del normal_force, meff
+        return jnp.zeros(())
+
     def initial_state(self):
         return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
 
@@ -304,6 +311,10 @@ class Dahl(AbstractFrictionLaw):
         return jnp.maximum(jnp.sqrt(self.sigma0 / meff),
                            self.sigma0 * BRISTLE_SLIDING_SPEED / self._fc(normal_force))
 
+    def oscillation_rate(self, normal_force, meff):
+        del normal_force
+        return jnp.sqrt(self.sigma0 / meff)  # the undamped bristle mode
+
 
 class LuGre(AbstractFrictionLaw):
     r"""LuGre bristle friction, paper section 3.3, Fig. 16:
@@ -391,6 +402,10 @@ class LuGre(AbstractFrictionLaw):
             jnp.maximum(jnp.sqrt(self.sigma0 / meff), (self.sigma1 + self.sigma2) / meff),
             self.sigma0 * BRISTLE_SLIDING_SPEED / fc,
         )
+
+    def oscillation_rate(self, normal_force, meff):
+        del normal_force
+        return jnp.sqrt(self.sigma0 / meff)  # the bristle mode, damped by σ1 only
 
 
 FRICTION_LAWS = {"coulomb": Coulomb, "stribeck": Stribeck, "dahl": Dahl, "lugre": LuGre}

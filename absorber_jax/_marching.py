@@ -14,13 +14,17 @@ import jax.numpy as jnp
 from ._checks import check_scalar
 from ._flow import _integrate
 from ._method import AbstractSteadyMethod
-from ._orbit import _finish
+from ._orbit import _finish, _no_gradient, implicit_orbit
 from ._status import Status
 
 
 def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chunk=40,
           with_floquet=True):
-    """March from scaled state ``x0`` until the Poincaré samples repeat with period ``n``."""
+    """March from scaled state ``x0`` until the Poincaré samples repeat with period ``n``.
+    The loop is not differentiated: the orbit's derivatives are the implicit function
+    theorem's at the marched fixed point (:func:`implicit_orbit`)."""
+    dyn_in = (system, forcing)
+    system, forcing, x0 = _no_gradient((system, forcing, x0))
     H = n_max + 2
     T = 2 * jnp.pi / forcing.omega
     ns = jnp.arange(1, n_max + 1)
@@ -34,7 +38,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
     def body(c):
         t, x, buf, d_prev, d_prev2, k, _, _, _ = c
         ts = t + T * jnp.arange(1, chunk + 1)
-        ys, st = _integrate((system, forcing), x, t, ts[-1], ts, cfg)
+        ys, st = _integrate((system, forcing), x, t, ts[-1], ts, cfg.over_periods(chunk))
         buf = jnp.concatenate([buf, ys])[-H:]
         d = distances(buf)
         # contraction per period, judged pessimistically over one and two chunks (the ratio
@@ -74,6 +78,8 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
                                            Status.NOT_PERIODIC)))
     n_eff = jnp.where(found, n, 1)
     res = jnp.where(found, d[n_eff - 1], jnp.min(d))
+    system, forcing = dyn_in
+    x = implicit_orbit(x, system, forcing, n_eff, cfg=cfg, n_cap=n_max)
     return _finish(system, forcing, x, n_eff, cfg, status, res, k * chunk, with_floquet,
                    n_cap=n_max)
 

@@ -14,8 +14,9 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import lineax as lx
 
-from ._flow import _flow, period_map, state_scale
+from ._flow import _flat_inputs, _flow, period_map, state_scale
 from ._status import Status
 
 SAMPLES_PER_PERIOD = 256
@@ -68,7 +69,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     T = 2 * jnp.pi / forcing.omega
     N = SAMPLES_PER_PERIOD * n_cap
     ts = jnp.arange(N) * (n * T / N)
-    ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg)
+    ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg.over_periods(n_cap))
     s = ys * scale
     x1, u = s[:, 0], s[:, 2]
     phase = jnp.exp(-1j * forcing.omega * ts)
@@ -78,10 +79,50 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     return stats, st, jnp.max(jnp.abs(u))
 
 
-def floquet(system, forcing, x0, n, cfg):
-    """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD)."""
-    J = jax.jacfwd(lambda x: period_map(system, forcing, x, n, cfg)[0])(x0)
-    return jnp.linalg.eigvals(jax.lax.stop_gradient(J))
+def floquet(system, forcing, x0, n, cfg, n_cap=None):
+    """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD); ``n``
+    may be traced when ``n_cap`` (its static upper bound) is given."""
+    # the multipliers are not differentiated: no second derivatives of the flow when a
+    # design or jax.grad differentiates the orbit
+    system, forcing, x0 = _no_gradient((system, forcing, x0))
+    return jnp.linalg.eigvals(monodromy(system, forcing, x0, n, cfg, n_cap=n_cap))
+
+
+def monodromy(system, forcing, x0, n, cfg, n_cap=None):
+    """``∂Φ_{nT}/∂x`` at the scaled state ``x0`` (forward mode)."""
+    return jax.jacfwd(lambda x: period_map(system, forcing, x, n, cfg, n_cap=n_cap)[0])(x0)
+
+
+def _no_gradient(tree):
+    return jax.tree_util.tree_map(lambda a: jax.lax.stop_gradient(a) if eqx.is_array(a) else a,
+                                  tree)
+
+
+@eqx.filter_custom_jvp
+def implicit_orbit(x, system, forcing, n, *, cfg, n_cap):
+    """The fixed point ``x`` of the period-``n`` map (found by iteration, e.g. marching),
+    returned as is, with the derivative of the implicit function theorem:
+    ``dx = (I - ∂Φ/∂x)⁺ ∂Φ/∂θ dθ`` (minimum-norm, for a floating absorber's orbit family).
+    Forward and reverse mode; the loop that found ``x`` is never differentiated."""
+    return x
+
+
+@implicit_orbit.def_jvp
+def _implicit_orbit_jvp(primals, tangents, *, cfg, n_cap):
+    x, system, forcing, n = primals
+    _, t_sys, t_forc, _ = tangents
+    if all(t is None for t in jax.tree_util.tree_leaves((t_sys, t_forc),
+                                                         is_leaf=lambda a: a is None)):
+        return x, None
+    x = jax.lax.stop_gradient(x)
+    vec, rebuild, t_vec = _flat_inputs((system, forcing), (t_sys, t_forc))
+    _, rhs = jax.jvp(lambda v: period_map(*rebuild(v), x, n, cfg, n_cap=n_cap)[0],
+                     (vec,), (t_vec,))
+    M = monodromy(*_no_gradient((system, forcing, x)), n, cfg, n_cap=n_cap)
+    # (the flow's Jacobians are finite, see _flow; the tangent stays linear in dθ, so that
+    # reverse mode can transpose it: no test on its values)
+    op = lx.MatrixLinearOperator(jnp.eye(x.shape[0]) - jnp.where(jnp.isfinite(M), M, 0.0))
+    return x, lx.linear_solve(op, rhs, lx.SVD(), throw=False).value
 
 
 def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
@@ -89,7 +130,7 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
     scale = state_scale(system, forcing)
     stats, st2, umax = orbit_statistics(system, forcing, x, n, cfg, n_cap)
     if with_floquet:
-        mult = floquet(system, forcing, x, n, cfg)
+        mult = floquet(system, forcing, x, n, cfg, n_cap=n_cap)
     else:
         mult = jnp.full((system.num_states,), jnp.nan + 0j)
     # an absorber floating without touching the walls: its free position and velocity give a

@@ -24,19 +24,6 @@ from ._orbit import _finish
 from ._status import Status
 
 
-@jax.custom_jvp
-def _finite_tangents(y):
-    return y
-
-
-@_finite_tangents.defjvp
-def _finite_tangents_jvp(primals, tangents):
-    # a non-finite tangent (an integration gone wrong at a trial Newton iterate) becomes 0, so
-    # the linear solve sees finite input; the iterate then fails to converge and is flagged
-    (y,), (dy,) = primals, tangents
-    return y, jnp.where(jnp.isfinite(dy), dy, 0.0)
-
-
 def _root_solver(name, tol):
     if name == "newton":
         # Newton with a minimum-norm (SVD) step: quadratic convergence, and the singular
@@ -60,7 +47,8 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
         # repeat the same failing, possibly max_steps-long integration newton_steps times);
         # the status below then flags the point
         bad = (st != Status.SUCCESS) | ~jnp.all(jnp.isfinite(xn))
-        return _finite_tangents(jnp.where(bad, jnp.zeros_like(x), xn - x))
+        # (the flow's tangents are finite: see _flow)
+        return jnp.where(bad, jnp.zeros_like(x), xn - x)
 
     solver = _root_solver(root, 0.1 * tol)
     # gradients of the orbit by the implicit function theorem on the shooting residual

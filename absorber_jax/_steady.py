@@ -10,9 +10,12 @@ velocities by ``Lω``) so that one tolerance means the same thing for every comp
   arbitrary: the orbits form a family, ``∂Φ/∂s - I`` is singular (a Floquet multiplier at
   exactly 1) and the minimum-norm step converges to the member of the family nearest the
   guess.  A shooting solve that fails is retried by marching then shooting
-  (:func:`march_then_shoot`).  The monodromy matrix is
-  ``jax.jacfwd`` of ``Φ`` (diffrax ``ForwardMode``); its eigenvalues are the Floquet
-  multipliers.
+  (:func:`march_then_shoot`).  The monodromy matrix is the
+  Jacobian of ``Φ`` (:mod:`absorber_jax._flow`); its eigenvalues are the Floquet
+  multipliers.  Derivatives of a solved orbit with respect to parameters are implicit,
+  ``ds/dθ = (I - M)^+ ∂Φ/∂θ`` (optimistix's ``ImplicitAdjoint`` for shooting,
+  :func:`absorber_jax._orbit.implicit_orbit` for marching), never taped
+  through the Newton or marching loop; forward and reverse mode both work.
 - **Marching** integrates forward in chunks of periods and samples the Poincaré section
   ``t = kT``.  It stops when, for the smallest ``n <= n_max``, the samples repeat with period
   ``n`` to within ``tol``, *and* the estimated distance to the limit (a geometric tail
@@ -44,6 +47,12 @@ from ._shooting import Shooting
 from ._status import Status
 from ._system import AbstractAbsorberSystem
 
+# Periods marched by the retry before it polishes by shooting: enough to settle near a stable
+# orbit or onto a chaotic attractor's neighbourhood, where shooting from the marched state
+# converges; not the 4000 of a Marching solve, which a response that never becomes periodic
+# spends in full (LuGre σ0 = 1e8: 4000 periods of 145k steps each).
+RETRY_MARCH_PERIODS = 200
+
 
 def march_then_shoot(system, forcing, cfg, shooting: Shooting, *, with_floquet=True,
                      marching: Marching | None = None):
@@ -55,7 +64,7 @@ def march_then_shoot(system, forcing, cfg, shooting: Shooting, *, with_floquet=T
     Newton from the linear guess is not globally convergent on the piecewise-smooth period
     map of a sticking absorber (it wandered for 40 steps near the best normal force);
     marching is, for a stable orbit."""
-    marching = Marching() if marching is None else marching
+    marching = Marching(max_periods=RETRY_MARCH_PERIODS) if marching is None else marching
     scale = state_scale(system, forcing)
     x0 = system.rest_state() / scale
     ma = marching.solve(system, forcing, x0, cfg, with_floquet=with_floquet)
@@ -139,7 +148,9 @@ def steady_state(system, forcing, *, method="shooting", guess=None, solver=None,
       order one), ``newton_steps``, ``root``, ``retry``; ``n_max``, ``max_periods``,
       ``chunk``.
     - ``guess``: public state ``[x1, v1, x2, v2, (z)]`` at ``t = 0``.
-    - ``solver``, ``rtol``, ``atol``, ``max_steps``: integrator settings (scaled state).
+    - ``solver``, ``rtol``, ``atol``, ``max_steps``: integrator settings (scaled state;
+      ``max_steps`` per forcing period: an integration over ``n`` periods may take ``n``
+      times as many).
     - ``floquet``: compute the Floquet multipliers (one forward-mode Jacobian); without
       them ``stable`` is False (not shown stable).
 

@@ -254,8 +254,9 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
         # frequency (the longest period: the most explicit steps per period)
         designs = pvals if P <= 256 else np.stack([pvals.min(0), pvals.max(0)])
         f0 = _forcing(amplitude, float(om[0]))
-        stiff = any(choose_solver(replace_params(system, dict(zip(names, d))), f0) != "tsit5"
-                    for d in designs) if names else choose_solver(system, f0) != "tsit5"
+        stiff = any(choose_solver(replace_params(system, dict(zip(names, d))), f0,
+                                  rtol=rtol) != "tsit5"
+                    for d in designs) if names else choose_solver(system, f0, rtol=rtol) != "tsit5"
         solver = "kvaerno5" if stiff else "tsit5"
     cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
     amp = jnp.asarray(amplitude, dtype=float)

@@ -62,6 +62,11 @@ class AbstractAbsorberSystem(eqx.Module):
     def stiffness_rate(self):
         """Rough largest rate [1/s] of the linearised dynamics (solver choice)."""
 
+    def oscillation_rate(self):
+        """Angular frequency [rad/s] of a fast, lightly damped oscillation of the coupling
+        that any solver must resolve at tight tolerances (solver choice; 0 when none)."""
+        return jnp.zeros(())
+
     @abc.abstractmethod
     def linear_guess(self, forcing):
         """A starting orbit for shooting from the linear limits of the scene (internal
@@ -430,3 +435,7 @@ class FrictionAbsorber(AbstractAbsorberSystem):
         meff = self.m1 * self.m2 / (self.m1 + self.m2)
         structural = jnp.maximum(jnp.sqrt((self.k1 + self.k2) / meff), (self.c1 + self.c2) / meff)
         return jnp.maximum(structural, self.friction.stiffness_rate(self.normal_force, meff))
+
+    def oscillation_rate(self):
+        meff = self.m1 * self.m2 / (self.m1 + self.m2)
+        return self.friction.oscillation_rate(self.normal_force, meff)

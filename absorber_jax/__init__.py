@@ -31,6 +31,13 @@ from ._shooting import Shooting  # noqa: E402
 from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._status import Status, describe  # noqa: E402
 from ._steady import SteadyState, solve_point, steady_state  # noqa: E402
+from ._structure import (  # noqa: E402
+    LinearStructure,
+    cantilever_beam,
+    shear_building,
+    structure_from_matrices,
+    structure_from_modes,
+)
 from ._sweep import FrequencyResponse, frequency_response  # noqa: E402
 from ._system import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 
@@ -44,6 +51,8 @@ __all__ = [
     "AbstractSteadyMethod", "solve_point", "get_param", "linear_guess",
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
     "band_objective", "smooth_max", "plot_tuning",
+    "LinearStructure", "cantilever_beam", "shear_building", "structure_from_matrices",
+    "structure_from_modes",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",

@@ -124,7 +124,7 @@ def test_tmd_tuning_reaches_the_h_infinity_optimum(mu):
 def test_friction_normal_force_optimum_is_interior():
     base = friction_system(aj.Coulomb(mu=0.5, eps=1e-3), N=2.0)
     band = (70.0, 120.0)
-    tuned, hist = aj.tune(base, ["N"], band, amplitude=10.0, steps=25, n_freq=24,
+    tuned, hist = aj.tune(base, ["N"], band, amplitude=10.0, steps=15, n_freq=24,
                           bounds={"N": (0.01, 200.0)}, confirm=False)
     N_opt = hist["best"]["N"]
     assert 0.05 < N_opt < 100.0
@@ -180,14 +180,14 @@ def test_gradients_stay_finite_through_grazing_and_stick_slip():
     # 60 rad/s: the floating orbit's relative amplitude is 0.769 mm; sweep the clearance
     # through it (impacting -> grazing -> floating)
     system, _ = aj.presets.impact("kelvin_voigt")
-    for gap in (0.70e-3, 0.765e-3, 0.769e-3, 0.775e-3, 0.85e-3):
+    for gap in (0.70e-3, 0.769e-3, 0.85e-3):
         s = aj.replace_params(system, {"gap": gap})
         val, g, status = aj.value_and_grad(s, ["gap", "c1"], [60.0], amplitude=2.0,
                                            objective="amplitude")
         assert status[0] == 0 and np.isfinite(val) and all(np.isfinite(v) for v in g.values())
     # Coulomb: from nearly free sliding through stick-slip to sticking
     fr = friction_system(aj.Coulomb(mu=0.5, eps=1e-3))
-    for N in (0.01, 0.5, 3.0, 20.0, 200.0):
+    for N in (0.01, 3.0, 200.0):
         val, g, status = aj.value_and_grad(aj.replace_params(fr, {"N": N}), ["N", "k2"], [95.0],
                                            amplitude=10.0, objective="amplitude")
         assert status[0] == 0 and np.isfinite(val) and all(np.isfinite(v) for v in g.values())

@@ -12,6 +12,14 @@ _jax.config.update("jax_enable_x64", True)
 from . import presets  # noqa: E402
 from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
 from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
+from ._elements import (  # noqa: E402
+    AbstractElement,
+    Contact,
+    FrictionContact,
+    FrictionDamper,
+    ImpactDamper,
+    TunedMassDamper,
+)
 from ._forcing import AbstractForcing, Harmonic, RampedHarmonic  # noqa: E402
 from ._friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
 from ._helpers import (  # noqa: E402
@@ -39,6 +47,8 @@ from ._structure import (  # noqa: E402
     structure_from_modes,
 )
 from ._sweep import FrequencyResponse, frequency_response  # noqa: E402
+from ._abstract_system import AbstractSystem  # noqa: E402
+from ._structural import StructuralSystem  # noqa: E402
 from ._system import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 
 __version__ = "0.1.0"
@@ -52,7 +62,8 @@ __all__ = [
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
     "band_objective", "smooth_max", "plot_tuning",
     "LinearStructure", "cantilever_beam", "shear_building", "structure_from_matrices",
-    "structure_from_modes",
+    "structure_from_modes", "AbstractSystem", "StructuralSystem", "AbstractElement", "Contact",
+    "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",

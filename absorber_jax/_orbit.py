@@ -3,10 +3,12 @@ Floquet multipliers and the stability label.
 
 Amplitudes (over one full response period ``nT``, from uniform samples refined by parabolic
 interpolation at the extremes; ``SAMPLES_PER_PERIOD`` per forcing period for the largest
-period multiple allowed): ``amplitude`` = half peak-to-peak of ``x1``; ``rms`` = RMS of
-``x1`` about zero; ``harmonic`` = magnitude of ``x1``'s component at the forcing frequency;
-``absorber_amplitude`` and ``absorber_rms`` the same for the absorber's motion relative to
-the primary (``x2 - x1``).
+period multiple allowed) of the system's observable (``x1`` for the two-mass systems, the
+chosen degree of freedom or weighted set of a :class:`StructuralSystem`): ``amplitude`` =
+half peak-to-peak; ``rms`` = RMS about zero; ``harmonic`` = magnitude of its component at the
+forcing frequency; ``dof_amplitude``, ``dof_rms``, ``dof_harmonic`` the same at each of the
+system's ``output_names``; ``absorber_amplitude`` and ``absorber_rms`` the same for the
+absorber's motion relative to its host (``x2 - x1``; the largest over several absorbers).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ SAMPLES_PER_PERIOD = 256
 class SteadyState(eqx.Module):
     """A periodic response (see the module docstring for the definitions).
 
-    ``state``: public state ``[x1, v1, x2, v2, (z)]`` on the orbit at ``t = 0 mod nT``;
+    ``state``: public state (``system.state_names``) on the orbit at ``t = 0 mod nT``;
     ``multipliers``: Floquet multipliers of the period-``nT`` map; ``stable``: all
     ``|μ| <= 1 + 1e-6``, except, on an orbit where the absorber floats without touching the
     walls, the structural double multiplier 1 of its free position;
@@ -37,6 +39,9 @@ class SteadyState(eqx.Module):
     harmonic: jax.Array
     absorber_amplitude: jax.Array
     absorber_rms: jax.Array
+    dof_amplitude: jax.Array
+    dof_rms: jax.Array
+    dof_harmonic: jax.Array
     period_multiple: jax.Array
     state: jax.Array
     multipliers: jax.Array
@@ -71,12 +76,20 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     ts = jnp.arange(N) * (n * T / N)
     ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg.over_periods(n_cap))
     s = ys * scale
-    x1, u = s[:, 0], s[:, 2]
     phase = jnp.exp(-1j * forcing.omega * ts)
-    harmonic = 2.0 * jnp.abs(jnp.mean(x1 * phase))
-    stats = dict(amplitude=_half_p2p(x1), rms=jnp.sqrt(jnp.mean(x1**2)), harmonic=harmonic,
-                 absorber_amplitude=_half_p2p(u), absorber_rms=jnp.sqrt(jnp.mean(u**2)))
-    return stats, st, jnp.max(jnp.abs(u))
+
+    def stats_of(y):
+        return (_half_p2p(y), jnp.sqrt(jnp.mean(y**2)), 2.0 * jnp.abs(jnp.mean(y * phase)))
+
+    amp, rms, harm = stats_of(jax.vmap(system.observable)(s))
+    d_amp, d_rms, d_harm = jax.vmap(stats_of, in_axes=1)(jax.vmap(system.outputs)(s))
+    u = jax.vmap(system.strokes)(s)                                   # (N, absorbers)
+    u_amp, u_rms, _ = jax.vmap(stats_of, in_axes=1)(u)
+    most = (lambda a: jnp.max(a)) if u.shape[1] else (lambda a: jnp.zeros((), s.dtype))
+    stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
+                 absorber_rms=most(u_rms), dof_amplitude=d_amp, dof_rms=d_rms,
+                 dof_harmonic=d_harm)
+    return stats, st, jnp.max(jnp.abs(u), axis=0)
 
 
 def floquet(system, forcing, x0, n, cfg, n_cap=None):
@@ -128,19 +141,20 @@ def _implicit_orbit_jvp(primals, tangents, *, cfg, n_cap):
 def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
             n_cap=1):
     scale = state_scale(system, forcing)
-    stats, st2, umax = orbit_statistics(system, forcing, x, n, cfg, n_cap)
+    stats, st2, stroke_max = orbit_statistics(system, forcing, x, n, cfg, n_cap)
     if with_floquet:
         mult = floquet(system, forcing, x, n, cfg, n_cap=n_cap)
     else:
         mult = jnp.full((system.num_states,), jnp.nan + 0j)
     # an absorber floating without touching the walls: its free position and velocity give a
     # structural double multiplier 1 (a Jordan block, split by ~sqrt(rounding) numerically);
-    # stability is judged on the other multipliers
-    floating = system.floats(umax)
+    # stability is judged on the other multipliers (2 per floating absorber set aside)
+    pairs = system.floating_pairs(stroke_max)
     dist = jnp.abs(mult - 1.0)
-    structural = floating & (dist <= jnp.sort(dist)[1]) & (dist < 1e-2)
+    kth = jnp.sort(dist)[jnp.clip(2 * pairs - 1, 0, dist.shape[0] - 1)]
+    structural = (pairs > 0) & (dist <= kth) & (dist < 1e-2)
     status = jnp.where(status == Status.SUCCESS, st2, status)
-    vals = jnp.stack([stats[k] for k in stats])
+    vals = jnp.concatenate([jnp.ravel(stats[k]) for k in stats])
     finite = jnp.all(jnp.isfinite(vals)) & jnp.all(jnp.isfinite(x))
     status = jnp.where((status == Status.SUCCESS) & ~finite, Status.NONFINITE, status)
     # a failed point (or multipliers not computed) is never called stable

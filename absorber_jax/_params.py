@@ -5,6 +5,7 @@ Impact absorber: ``M, k, c, m, gap`` and the contact law's ``k1`` (= ``contact.s
 ``kHz`` for Hertz laws), ``c1`` (= ``contact.damping``), ``eps``.
 Friction absorber: ``m1, k1, c1, m2, k2, c2, N`` (= ``normal_force``) and the friction law's
 fields (``mu``, ``mu_c``, ``mu_s``, ``v_s``, ``sigma0``, ``sigma1``, ``sigma2``, ``eps``).
+Structural systems: ``<element name>.<field>`` (``tmd1.k``, ``friction1.N``).
 Dotted paths (``contact.stiffness``) work too.
 """
 
@@ -14,36 +15,25 @@ import dataclasses
 
 import equinox as eqx
 
-from ._system import FrictionAbsorber, ImpactAbsorber
-
-_IMPACT_ALIASES = {"k1": "contact.stiffness", "kHz": "contact.stiffness",
-                   "c1": "contact.damping", "eps": "contact.eps"}
-_FRICTION_ALIASES = {"N": "normal_force"}
-
-
 def resolve(system, name: str) -> str:
-    """Dotted field path of parameter ``name`` in ``system``."""
-    if isinstance(system, ImpactAbsorber):
-        path = _IMPACT_ALIASES.get(name, name)
-    elif isinstance(system, FrictionAbsorber):
-        path = _FRICTION_ALIASES.get(name, name)
-        if "." not in path and not hasattr(system, path) and hasattr(system.friction, path):
-            path = "friction." + path
-    else:
-        path = name
+    """Dotted field path of parameter ``name`` in ``system`` (``system.parameter_path``),
+    checked to exist."""
+    path = system.parameter_path(name)
     obj = system
     for part in path.split("."):
-        if not hasattr(obj, part) or part.startswith("_"):
+        ok = (part.isdigit() and isinstance(obj, tuple) and int(part) < len(obj)) or (
+            not part.isdigit() and not part.startswith("_") and hasattr(obj, part))
+        if not ok:
             raise ValueError(f"{type(system).__name__} has no parameter {name!r}; "
                              f"known: {', '.join(parameter_names(system))}")
-        obj = getattr(obj, part)
+        obj = obj[int(part)] if part.isdigit() else getattr(obj, part)
     return path
 
 
 def _getter(path):
     def get(tree):
         for part in path.split("."):
-            tree = getattr(tree, part)
+            tree = tree[int(part)] if part.isdigit() else getattr(tree, part)
         return tree
 
     return get
@@ -54,12 +44,7 @@ def get_param(system, name):
 
 
 def parameter_names(system):
-    names = [f.name for f in dataclasses.fields(system) if f.name not in ("contact", "friction")]
-    if isinstance(system, ImpactAbsorber):
-        names += ["k1", "c1", "eps"]
-    elif isinstance(system, FrictionAbsorber):
-        names += ["N"] + [f.name for f in dataclasses.fields(system.friction)]
-    return names
+    return system.parameter_names()
 
 
 def replace_params(system, values: dict, *, check=True):
@@ -74,6 +59,8 @@ def replace_params(system, values: dict, *, check=True):
 
 def _rebuild(module):
     """Re-run a module's constructor (converters and checks) on its current fields."""
+    if isinstance(module, tuple):
+        return tuple(_rebuild(m) for m in module)
     if not isinstance(module, eqx.Module):
         return module
     kwargs = {}

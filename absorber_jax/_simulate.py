@@ -16,7 +16,7 @@ from ._custom_types import Status as StatusArray
 from ._forcing import AbstractForcing
 from ._status import Status, from_diffrax
 from ._stickslip import hybrid_solve
-from ._system import AbstractAbsorberSystem, FrictionAbsorber
+from ._abstract_system import AbstractSystem
 
 # The automatic choice switches to an implicit solver when (largest rate x forcing period)
 # exceeds this.  Measured on the Coulomb scene (Table 4, N = 10 N, ω = 50 rad/s,
@@ -60,7 +60,7 @@ TIGHT_RTOL = 1e-7
 OSCILLATION_STIFFNESS_RATIO = 1.0e3
 
 
-def choose_solver(system: AbstractAbsorberSystem, forcing: AbstractForcing, *,
+def choose_solver(system: AbstractSystem, forcing: AbstractForcing, *,
                   rtol=None) -> str:
     """The automatic solver choice: ``"tsit5"`` unless the scene is stiff (the largest rate of
     its linearised coupling times the forcing period exceeds ``STIFF_STEPS_PER_PERIOD``), then
@@ -127,7 +127,7 @@ class Trajectory(eqx.Module):
     coupling_force: jax.Array
     status: StatusArray
     num_steps: jax.Array
-    system: AbstractAbsorberSystem
+    system: AbstractSystem
     forcing: AbstractForcing
     friction_force: jax.Array | None = None
     force_ratio: jax.Array | None = None
@@ -166,6 +166,20 @@ class Trajectory(eqx.Module):
         """Absorber displacement relative to the primary, ``x2 - x1`` [m]."""
         return self.x2 - self.x1
 
+    def dof(self, name):
+        """Displacement [m or rad] of the degree of freedom ``name`` (one of
+        ``system.output_names``) at ``ts``."""
+        names = self.system.output_names
+        if name not in names:
+            raise ValueError(f"dof must be one of {list(names)}, got {name!r}")
+        s = jax.vmap(self.system.to_internal)(self.ys)
+        return jax.vmap(self.system.outputs)(s)[:, names.index(name)]
+
+    def observed(self):
+        """The system's observable signal (``x1`` for the two-mass systems) at ``ts``."""
+        s = jax.vmap(self.system.to_internal)(self.ys)
+        return jax.vmap(self.system.observable)(s)
+
     def mechanical_energy(self):
         to_int = jax.vmap(self.system.to_internal)
         return jax.vmap(self.system.mechanical_energy)(to_int(self.ys))
@@ -178,16 +192,6 @@ class Trajectory(eqx.Module):
         T = float(self.forcing.period)
         sel = ts >= ts[-1] - last_periods * T
         return 0.5 * (x[sel].max() - x[sel].min())
-
-
-def _regime(ts, sliding, period):
-    """Regime per instant from the fraction of the forcing period ending there spent in gross
-    sliding: < 2 % jammed (0), > 80 % totally gliding (2), else partially gliding (1)."""
-    frac_cum = jnp.concatenate([jnp.zeros(1), jnp.cumsum(sliding.astype(ts.dtype))])
-    j = jnp.searchsorted(ts, ts - period, side="right")
-    i = jnp.arange(ts.shape[0]) + 1
-    frac = (frac_cum[i] - frac_cum[j]) / jnp.maximum(i - j, 1)
-    return jnp.where(frac < 0.02, 0, jnp.where(frac > 0.8, 2, 1))
 
 
 def _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw,
@@ -230,35 +234,22 @@ def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, 
     status = jnp.where(
         (status == Status.SUCCESS) & ~jnp.all(jnp.isfinite(s)), Status.NONFINITE, status
     )
-    acc = jax.vmap(lambda t, si: system.accelerations(t, si, forcing))(ts, s)
-    a1, a2, fp, _ = acc
     out = dict(
         ts=ts,
         ys=system.to_public(s),
-        coupling_force=fp,
         status=status,
         num_steps=nsteps,
         system=system,
         forcing=forcing,
+        **system.trajectory_fields(ts, s, forcing),
     )
-    if isinstance(system, FrictionAbsorber):
-        fnl = jax.vmap(system.friction_force)(s[:, 2], s[:, 3], s[:, 4:])
-        fa = system.m2 * (a1 - a2)
-        tiny = 1e-12 * jnp.maximum(system.normal_force, 1e-300)
-        sliding = jax.vmap(system.is_sliding)(s[:, 2], s[:, 3], s[:, 4:])
-        out.update(
-            friction_force=fnl,
-            force_ratio=jnp.abs(fa) / jnp.maximum(jnp.abs(fnl), tiny),
-            sliding=sliding,
-            regime=_regime(ts, sliding, forcing.period),
-        )
     if energy:
         out.update(work=ys[:, n], dissipated=ys[:, n + 1])
     return out
 
 
 def simulate(
-    system: AbstractAbsorberSystem,
+    system: AbstractSystem,
     forcing: AbstractForcing,
     t1,
     *,
@@ -301,9 +292,10 @@ def simulate(
     ```
     """
     require_x64("simulate")
-    if not isinstance(system, AbstractAbsorberSystem):
+    if not isinstance(system, AbstractSystem):
         raise ValueError(
-            f"system must be an ImpactAbsorber or FrictionAbsorber, got {type(system).__name__}"
+            f"system must be an ImpactAbsorber, FrictionAbsorber or StructuralSystem, got "
+            f"{type(system).__name__}"
         )
     if not isinstance(forcing, AbstractForcing):
         raise ValueError(f"forcing must be a forcing (e.g. Harmonic), got {type(forcing).__name__}")

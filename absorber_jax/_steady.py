@@ -45,7 +45,7 @@ from ._method import AbstractSteadyMethod
 from ._orbit import SAMPLES_PER_PERIOD, SteadyState, orbit_statistics  # noqa: F401
 from ._shooting import Shooting
 from ._status import Status
-from ._system import AbstractAbsorberSystem
+from ._abstract_system import AbstractSystem
 
 # Periods marched by the retry before it polishes by shooting: enough to settle near a stable
 # orbit or onto a chaotic attractor's neighbourhood, where shooting from the marched state
@@ -112,9 +112,9 @@ def resolve_method(method, where, **options):
 
 
 def _check(system, forcing):
-    if not isinstance(system, AbstractAbsorberSystem):
-        raise ValueError(f"system must be an ImpactAbsorber or FrictionAbsorber, got "
-                         f"{type(system).__name__}")
+    if not isinstance(system, AbstractSystem):
+        raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
+                         f"StructuralSystem, got {type(system).__name__}")
     if not isinstance(forcing, Harmonic):
         raise ValueError("steady_state needs a periodic forcing: forcing must be a Harmonic, "
                          f"got {type(forcing).__name__}")

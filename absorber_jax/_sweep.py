@@ -4,6 +4,7 @@ one compiled, vmapped call per chunk."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 
 import equinox as eqx
@@ -16,41 +17,52 @@ from ._forcing import Harmonic
 from ._params import replace_params, resolve
 from ._simulate import choose_solver
 from ._status import Status, describe
-from ._steady import make_config, march_then_shoot, resolve_method, solve_point
-from ._system import AbstractAbsorberSystem
+from ._steady import SteadyState, make_config, march_then_shoot, resolve_method, solve_point
+from ._abstract_system import AbstractSystem
 
-FIELDS = ("amplitude", "rms", "harmonic", "absorber_amplitude", "absorber_rms",
-          "period_multiple", "stable", "status", "residual", "iterations")
+# the per-point scalar results of the point solve (SteadyState), in CSV order
+FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState)
+               if f.name not in ("state", "multipliers") and not f.name.startswith("dof_"))
+DOF_FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState) if f.name.startswith("dof_"))
+_INTEGER = ("period_multiple", "status", "iterations", "stable")
 
 
 class FrequencyResponse(eqx.Module):
-    """Steady-state results over ``omegas`` (and designs).
+    """Steady-state results over ``omegas`` (and designs): the point solve's
+    :class:`SteadyState`, batched (``steady``), with the grid.
 
-    Arrays have shape ``(F,)`` for a plain sweep, or ``(P, F)`` when ``params`` gave ``P``
-    designs.  ``status`` is per point (0 = success, see :class:`Status`); a failed point
+    Every field of :class:`SteadyState` reads through (``amplitude``, ``stable``, ``status``,
+    ``dof_amplitude`` ...; ``states`` and ``multipliers`` for ``state`` and
+    ``multipliers``).  Arrays have shape ``(F,)`` for a plain sweep, or ``(P, F)`` when
+    ``params`` gave ``P`` designs (per-degree-of-freedom fields add a last axis over
+    ``dof_names``).  ``status`` is per point (0 = success, see :class:`Status`); a failed point
     never spoils the others.  ``direction`` is ``"parallel"`` (every point from its own linear
     guess), ``"up"`` or ``"down"`` (each point seeded from its neighbour: follows a branch,
     shows hysteresis)."""
 
     omegas: np.ndarray
-    amplitude: np.ndarray
-    rms: np.ndarray
-    harmonic: np.ndarray
-    absorber_amplitude: np.ndarray
-    absorber_rms: np.ndarray
-    period_multiple: np.ndarray
-    stable: np.ndarray
-    status: np.ndarray
-    residual: np.ndarray
-    iterations: np.ndarray
-    states: np.ndarray
-    multipliers: np.ndarray
+    steady: SteadyState
     params: dict
     direction: str = eqx.field(static=True, default="parallel")
+    dof_names: tuple = eqx.field(static=True, default=())
+
+    @property
+    def states(self):
+        return self.steady.state
+
+    @property
+    def multipliers(self):
+        return self.steady.multipliers
 
     @property
     def ok(self):
         return self.status == Status.SUCCESS
+
+    def dof(self, name, field="amplitude"):
+        """``dof_<field>`` (amplitude, rms or harmonic) at the degree of freedom ``name``."""
+        if name not in self.dof_names:
+            raise ValueError(f"dof must be one of {list(self.dof_names)}, got {name!r}")
+        return np.asarray(getattr(self.steady, "dof_" + field))[..., self.dof_names.index(name)]
 
     def failures(self):
         """``[(index, status text)]`` of the points that failed."""
@@ -58,20 +70,31 @@ class FrequencyResponse(eqx.Module):
         return [(tuple(int(j) for j in i), describe(self.status[tuple(i)])) for i in idx]
 
     def to_csv(self, path):
+        """One row per (design, frequency): the parameters, ``omega``, the scalar fields, the
+        per-degree-of-freedom ones as ``<field>[<dof>]`` columns, the status text."""
+        dof_cols = [f"{k[4:]}[{d}]" for k in DOF_FIELDS for d in self.dof_names]
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             pnames = list(self.params)
-            w.writerow(["direction", *pnames, "omega", *FIELDS, "status_text"])
+            w.writerow(["direction", *pnames, "omega", *FIELDS, *dof_cols, "status_text"])
             amp = np.atleast_2d(self.amplitude)
             P = amp.shape[0]
             for p in range(P):
                 pv = [float(np.asarray(self.params[k])[p]) for k in pnames]
                 for f, om in enumerate(self.omegas):
                     vals = [np.atleast_2d(getattr(self, k))[p, f] for k in FIELDS]
-                    vals = [int(v) if k in ("period_multiple", "status", "iterations", "stable")
-                            else float(v) for k, v in zip(FIELDS, vals)]
-                    w.writerow([self.direction, *pv, float(om), *vals,
+                    vals = [int(v) if k in _INTEGER else float(v) for k, v in zip(FIELDS, vals)]
+                    dofs = [float(v) for k in DOF_FIELDS
+                            for v in np.asarray(getattr(self, k)).reshape(P, len(self.omegas),
+                                                                          -1)[p, f]]
+                    w.writerow([self.direction, *pv, float(om), *vals, *dofs,
                                 describe(np.atleast_2d(self.status)[p, f])])
+
+
+for _name in FIELDS + DOF_FIELDS:
+    setattr(FrequencyResponse, _name,
+            property(lambda self, n=_name: getattr(self.steady, n),
+                     doc=f"``SteadyState.{_name}`` per point."))
 
 
 def _forcing(amplitude, omega):
@@ -189,7 +212,7 @@ def _sequential_chunk(system, omegas, amplitude, pvals, carry, cfg, method, name
     return carry, res
 
 
-def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, method="shooting",
+def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="shooting",
                        params=None, direction="parallel", chunk_size=64, progress=False,
                        shard=True, floquet=True, solver=None, rtol=1e-9, atol=1e-9,
                        max_steps=200_000, n=None, tol=None, n_max=None, newton_steps=None,
@@ -225,9 +248,9 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
     ```
     """
     require_x64("frequency_response")
-    if not isinstance(system, AbstractAbsorberSystem):
-        raise ValueError(f"system must be an ImpactAbsorber or FrictionAbsorber, got "
-                         f"{type(system).__name__}")
+    if not isinstance(system, AbstractSystem):
+        raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
+                         f"StructuralSystem, got {type(system).__name__}")
     check_time_grid("omegas", omegas, strictly=True)
     om = np.asarray(omegas, dtype=float)
     if om[0] <= 0:
@@ -310,10 +333,9 @@ def frequency_response(system: AbstractAbsorberSystem, omegas, *, amplitude, met
     squeeze = params is None
     get = (lambda a: a[0]) if squeeze else (lambda a: a)
     return FrequencyResponse(
-        omegas=om, **{k: get(np.asarray(getattr(res, k))) for k in FIELDS},
-        states=get(np.asarray(res.state)), multipliers=get(np.asarray(res.multipliers)),
+        omegas=om, steady=jax.tree_util.tree_map(lambda a: get(np.asarray(a)), res),
         params={k: np.asarray(pvals[:, i]) for i, k in enumerate(names)},
-        direction=direction,
+        direction=direction, dof_names=tuple(system.output_names),
     )
 
 

@@ -14,18 +14,32 @@ Public state (``y0``, trajectories): absolute ``[x1, v1, x2, v2, *z]``.
 from __future__ import annotations
 
 import abc
+import dataclasses
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
+from ._abstract_system import AbstractSystem
 from ._checks import as_float, nonnegative, positive
 from ._contact import AbstractContactLaw
 from ._friction import AbstractFrictionLaw
 from ._linear import _internal, finite_or_zero, harmonic_response, state_at_zero, two_mass_matrices
 
 
-class AbstractAbsorberSystem(eqx.Module):
-    """A forced linear primary carrying one absorber through a nonlinear coupling."""
+def regime(ts, sliding, period):
+    """Regime per instant from the fraction of the forcing period ending there spent in gross
+    sliding: < 2 % jammed (0), > 80 % totally gliding (2), else partially gliding (1)."""
+    frac_cum = jnp.concatenate([jnp.zeros(1), jnp.cumsum(sliding.astype(ts.dtype))])
+    j = jnp.searchsorted(ts, ts - period, side="right")
+    i = jnp.arange(ts.shape[0]) + 1
+    frac = (frac_cum[i] - frac_cum[j]) / jnp.maximum(i - j, 1)
+    return jnp.where(frac < 0.02, 0, jnp.where(frac > 0.8, 2, 1))
+
+
+class AbstractAbsorberSystem(AbstractSystem):
+    """A forced linear primary carrying one absorber through a nonlinear coupling
+    (outputs ``x1``, ``x2``; observable ``x1``; stroke ``x2 - x1``)."""
 
     @property
     @abc.abstractmethod
@@ -80,6 +94,42 @@ class AbstractAbsorberSystem(eqx.Module):
         """Natural size of the law's internal states (empty when it has none)."""
         return jnp.zeros((self.num_law_states,))
 
+    @property
+    def state_names(self) -> tuple:
+        return ("x1", "v1", "x2", "v2") + tuple(f"z{i + 1}" for i in range(self.num_law_states))
+
+    @property
+    def output_names(self) -> tuple:
+        return ("x1", "x2")
+
+    def outputs(self, s):
+        return jnp.stack([s[0], s[0] + s[2]])
+
+    def observable(self, s):
+        return s[0]
+
+    def strokes(self, s):
+        return s[2:3]
+
+    def floating_pairs(self, stroke_max):
+        return self.floats(stroke_max[0]).astype(int)
+
+    def aliases(self) -> dict:
+        """Parameter names of the paper mapped to field paths."""
+        return {}
+
+    def parameter_path(self, name: str) -> str:
+        return self.aliases().get(name, name)
+
+    def parameter_names(self) -> list:
+        names = [f.name for f in dataclasses.fields(self)
+                 if f.init and f.name not in ("contact", "friction")]
+        return names + list(self.aliases())
+
+    def trajectory_fields(self, ts, s, forcing):
+        _, _, fp, _ = jax.vmap(lambda t, si: self.accelerations(t, si, forcing))(ts, s)
+        return {"coupling_force": fp}
+
     def floats(self, u_max):
         """True when, on an orbit whose relative motion stays within ``|u| <= u_max``, the
         absorber's position is free (a structural Floquet multiplier 1, not a loss of
@@ -96,29 +146,6 @@ class AbstractAbsorberSystem(eqx.Module):
                         1e-12)
         scale = L * jnp.stack([1.0, w, 1.0, w])
         return jnp.concatenate([scale, self.law_state_scale()])
-
-    # -- exact nonsmooth (hybrid) dynamics: see absorber_jax._stickslip -----------------
-    @property
-    def hybrid(self) -> bool:
-        """``True`` when the coupling is nonsmooth and integrated by switching modes at
-        events (an exact stick–slip friction law); ``False`` for smooth vector fields."""
-        return False
-
-    def mode_of(self, t, s, forcing):
-        """Integer mode of internal state ``s`` at time ``t`` (hybrid systems only)."""
-        raise NotImplementedError
-
-    def mode_rate(self, t, s, forcing, mode):
-        """d/dt of ``s`` within ``mode`` (hybrid systems only)."""
-        raise NotImplementedError
-
-    def switch_function(self, t, s, forcing, mode):
-        """Leaves ``mode`` where this crosses zero upwards (hybrid systems only)."""
-        raise NotImplementedError
-
-    def next_mode(self, t, s, forcing, mode):
-        """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
-        raise NotImplementedError
 
     # -- state conversions ---------------------------------------------------------
     def to_internal(self, y):
@@ -248,6 +275,10 @@ class ImpactAbsorber(AbstractAbsorberSystem):
     def length_floor(self):
         return self.gap
 
+    def aliases(self) -> dict:
+        return {"k1": "contact.stiffness", "kHz": "contact.stiffness",
+                "c1": "contact.damping", "eps": "contact.eps"}
+
     def floats(self, u_max):
         # never touching a wall: its free position and velocity give a structural double
         # multiplier 1 (a Jordan block, split by ~sqrt(rounding) numerically)
@@ -334,6 +365,22 @@ class FrictionAbsorber(AbstractAbsorberSystem):
     @property
     def num_law_states(self) -> int:
         return self.friction.num_states
+
+    def aliases(self) -> dict:
+        law = {f.name: "friction." + f.name for f in dataclasses.fields(self.friction)
+               if f.init}
+        return {"N": "normal_force", **law}
+
+    def trajectory_fields(self, ts, s, forcing):
+        a1, a2, fp, _ = jax.vmap(lambda t, si: self.accelerations(t, si, forcing))(ts, s)
+        u, w, z = s[:, 2], s[:, 3], s[:, 4:]
+        fnl = jax.vmap(self.friction_force)(u, w, z)
+        fa = self.m2 * (a1 - a2)
+        tiny = 1e-12 * jnp.maximum(self.normal_force, 1e-300)
+        sliding = jax.vmap(self.is_sliding)(u, w, z)
+        return dict(coupling_force=fp, friction_force=fnl,
+                    force_ratio=jnp.abs(fa) / jnp.maximum(jnp.abs(fnl), tiny),
+                    sliding=sliding, regime=regime(ts, sliding, forcing.period))
 
     def friction_force(self, u, w, z):
         """``Fnl`` [N] (positive drags the absorber along with the primary)."""

@@ -1,0 +1,327 @@
+r"""The general system (issue 11): a :class:`LinearStructure` carrying any number of elements
+(absorbers, tuned mass dampers, contacts, friction contacts), loaded by ``F(t)`` distributed
+over its degrees of freedom.
+
+$$M_q\ddot q + C_q\dot q + K_q q = \Phi^T\Big(b\,F(t) + \sum_e f_e(\Phi q, \Phi\dot q, z_e)\Big),$$
+
+each element ``e`` reading the displacements ``x = Φ q`` of its degrees of freedom and its own
+states ``z_e`` (an absorber's relative motion, a bristle deflection) and pushing back with
+``f_e``; its states then evolve with the degrees of freedom's accelerations ``Φ q̈``.
+
+State (internal = public), a flat vector with named slices (``state_names``, ``slice_of``):
+``[q (n), q̇ (n), element states ...]`` in the structure's coordinates (the degrees of freedom
+themselves for a matrix model, modal coordinates for a modal one).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._abstract_system import AbstractSystem
+from ._elements import AbstractElement
+from ._linear import finite_or_zero
+from ._structure import LinearStructure
+
+
+def _weights(structure, value, field):
+    """A vector over the degrees of freedom from a name, a ``{name: weight}`` dict or an
+    array (ValueError naming ``field`` otherwise)."""
+    n = structure.num_dofs
+    if isinstance(value, str):
+        value = {value: 1.0}
+    if isinstance(value, dict):
+        w = np.zeros(n)
+        for k, v in value.items():
+            try:
+                i = structure.dof_index(k)
+            except ValueError as e:
+                raise ValueError(f"StructuralSystem.{field}: {e}") from None
+            w[i] += float(v)
+        return jnp.asarray(w)
+    arr = jnp.asarray(value, dtype=float)
+    if arr.shape != (n,):
+        raise ValueError(f"StructuralSystem.{field} must be a degree-of-freedom name, a "
+                         f"{{name: weight}} dict or an array of shape ({n},), got shape "
+                         f"{arr.shape}")
+    return arr
+
+
+class StructuralSystem(AbstractSystem):
+    """A linear structure with elements attached, forced by ``F(t) · load`` (module
+    docstring).
+
+    **Arguments**
+
+    - ``structure``: a :class:`LinearStructure` (matrices or modes).
+    - ``elements``: a sequence of elements (:class:`ImpactDamper`, :class:`FrictionDamper`,
+      :class:`TunedMassDamper`, :class:`Contact`, :class:`FrictionContact`), each named by its
+      ``name`` or ``<kind><count>`` (``impact1``, ``tmd2``, ...); their parameters are
+      ``<name>.<field>`` (``tmd1.k``, ``friction1.N``).
+    - ``load``: where ``F(t)`` acts: a degree-of-freedom name (unit weight), a
+      ``{name: weight}`` dict or a vector over the degrees of freedom (a force [N] per unit
+      ``F``).
+    - ``observe``: the observable of the results and design objectives: a degree of freedom,
+      or a ``{name: weight}`` dict / vector for the weighted signal ``Σ w_i x_i`` (e.g. an
+      inter-storey drift ``{"x3": 1, "x2": -1}``); default the loaded degree of freedom
+      when the load acts on one.
+
+    ```python
+    building = shear_building([1.0] * 3, [1e3] * 3, rayleigh=(0.1, 1e-4))
+    sys = StructuralSystem(building, [TunedMassDamper("x3", m=0.1, k=25.0, c=0.5)],
+                           load="x1", observe="x3")
+    ```
+    """
+
+    structure: LinearStructure
+    elements: tuple
+    load: jax.Array
+    observe: jax.Array
+    mass_inverse: jax.Array
+
+    def __init__(self, structure, elements=(), *, load, observe=None, mass_inverse=None):
+        if not isinstance(structure, LinearStructure):
+            raise ValueError(f"StructuralSystem.structure must be a LinearStructure, got "
+                             f"{type(structure).__name__}")
+        elements = tuple(elements)
+        for e in elements:
+            if not isinstance(e, AbstractElement):
+                raise ValueError(f"StructuralSystem.elements must be elements (ImpactDamper, "
+                                 f"FrictionDamper, TunedMassDamper, Contact, FrictionContact), "
+                                 f"got {type(e).__name__}")
+            for d in (e.dof,) + (() if e.other is None else (e.other,)):
+                try:
+                    structure.dof_index(d)
+                except ValueError as err:
+                    raise ValueError(f"StructuralSystem.elements: {type(e).__name__}: "
+                                     f"{err}") from None
+        self.structure = structure
+        self.elements = elements
+        self.load = _weights(structure, load, "load")
+        if observe is None:
+            nz = np.flatnonzero(np.asarray(self.load))
+            if nz.size != 1:
+                raise ValueError("StructuralSystem.observe must be given when the load acts on "
+                                 "several degrees of freedom")
+            observe = structure.dof_names[int(nz[0])]
+        self.observe = _weights(structure, observe, "observe")
+        self.mass_inverse = (jnp.linalg.inv(structure.mass) if mass_inverse is None
+                             else jnp.asarray(mass_inverse, dtype=float))
+        names = self.element_names
+        clash = set(names) & set(structure.dof_names)
+        if len(set(names)) != len(names) or clash:
+            raise ValueError(f"StructuralSystem.elements: names must be distinct and differ "
+                             f"from the degrees of freedom, got {list(names)}")
+
+    # -- layout ----------------------------------------------------------------------
+    @property
+    def element_names(self) -> tuple:
+        names, count = [], {}
+        for e in self.elements:
+            count[e.kind] = count.get(e.kind, 0) + 1
+            names.append(e.name if e.name is not None else f"{e.kind}{count[e.kind]}")
+        return tuple(names)
+
+    @property
+    def num_coords(self) -> int:
+        return self.structure.num_coords
+
+    def _offsets(self):
+        off, out = 2 * self.num_coords, []
+        for e in self.elements:
+            out.append(off)
+            off += e.num_states
+        return out, off
+
+    @property
+    def num_states(self) -> int:
+        return self._offsets()[1]
+
+    def slice_of(self, name):
+        """The slice of the state holding element ``name``'s states (or ``"q"``, ``"qd"``)."""
+        n = self.num_coords
+        if name == "q":
+            return slice(0, n)
+        if name == "qd":
+            return slice(n, 2 * n)
+        if name not in self.element_names:
+            raise ValueError(f"slice_of: unknown {name!r}; known: q, qd, "
+                             f"{', '.join(self.element_names)}")
+        i = self.element_names.index(name)
+        off = self._offsets()[0][i]
+        return slice(off, off + self.elements[i].num_states)
+
+    @property
+    def state_names(self) -> tuple:
+        n = self.num_coords
+        names = [f"q{i + 1}" for i in range(n)] + [f"qd{i + 1}" for i in range(n)]
+        for nm, e in zip(self.element_names, self.elements):
+            names += [f"{nm}.{lab}" for lab in e.state_labels]
+        return tuple(names)
+
+    def _dofs(self):
+        st = self.structure
+        return [(st.dof_index(e.dof), -1 if e.other is None else st.dof_index(e.other))
+                for e in self.elements]
+
+    def _pieces(self, s):
+        n = self.num_coords
+        q, qd = s[:n], s[n:2 * n]
+        offs, _ = self._offsets()
+        zs = [s[o:o + e.num_states] for o, e in zip(offs, self.elements)]
+        return q, qd, zs
+
+    @staticmethod
+    def _pair(x, ia, ib):
+        return jnp.stack([x[ia], x[ib] if ib >= 0 else jnp.zeros_like(x[ia])])
+
+    # -- dynamics ----------------------------------------------------------------------
+    def _rate(self, s, f_ext):
+        """d/dt of ``s`` under the external force ``F = f_ext`` [N]."""
+        st = self.structure
+        Phi = st.dof_map
+        q, qd, zs = self._pieces(s)
+        x, v = Phi @ q, Phi @ qd
+        f = self.load * f_ext
+        auxes = []
+        for e, (ia, ib), z in zip(self.elements, self._dofs(), zs):
+            fe, aux = e.evaluate(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
+            f = f.at[ia].add(fe[0])
+            if ib >= 0:
+                f = f.at[ib].add(fe[1])
+            auxes.append(aux)
+        qdd = self.mass_inverse @ (Phi.T @ f - st.damping @ qd - st.stiffness @ q)
+        a = Phi @ qdd
+        rates = [e.state_rate(self._pair(x, ia, ib), self._pair(v, ia, ib),
+                              self._pair(a, ia, ib), z, aux)
+                 for e, (ia, ib), z, aux in zip(self.elements, self._dofs(), zs, auxes)]
+        return jnp.concatenate([qd, qdd, *rates])
+
+    def vector_field(self, t, s, forcing):
+        return self._rate(s, forcing(t))
+
+    def element_forces(self, s):
+        """Force [N] each element applies to its (first) degree of freedom."""
+        q, qd, zs = self._pieces(s)
+        Phi = self.structure.dof_map
+        x, v = Phi @ q, Phi @ qd
+        out = [e.evaluate(self._pair(x, ia, ib), self._pair(v, ia, ib), z)[0][0]
+               for e, (ia, ib), z in zip(self.elements, self._dofs(), zs)]
+        return jnp.stack(out) if out else jnp.zeros((0,), s.dtype)
+
+    def trajectory_fields(self, ts, s, forcing):
+        return {"coupling_force": jax.vmap(self.element_forces)(s)}
+
+    def mechanical_energy(self, s):
+        st = self.structure
+        q, qd, zs = self._pieces(s)
+        x, v = st.dof_map @ q, st.dof_map @ qd
+        e = 0.5 * qd @ st.mass @ qd + 0.5 * q @ st.stiffness @ q
+        for el, (ia, ib), z in zip(self.elements, self._dofs(), zs):
+            e = e + el.energy(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
+        return e
+
+    def power(self, t, s, forcing):
+        st = self.structure
+        q, qd, zs = self._pieces(s)
+        x, v = st.dof_map @ q, st.dof_map @ qd
+        diss = qd @ st.damping @ qd
+        for el, (ia, ib), z in zip(self.elements, self._dofs(), zs):
+            diss = diss + el.dissipation(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
+        return forcing(t) * (self.load @ v), diss
+
+    # -- scales, guesses, solver hints ---------------------------------------------------
+    def _host_masses(self):
+        """Effective mass of the structure at each degree of freedom, ``1 / (Φ_i M⁻¹ Φ_iᵀ)``."""
+        Phi = self.structure.dof_map
+        return 1.0 / jnp.maximum(jnp.einsum("ij,jk,ik->i", Phi, self.mass_inverse, Phi),
+                                 1e-300)
+
+    def _length_floor(self):
+        floors = [e.length_floor() for e in self.elements]
+        return jnp.max(jnp.stack(floors)) if floors else jnp.zeros(())
+
+    def state_scale(self, forcing):
+        """Coordinates: ``F0 |Φᵀ b|_∞ / (K_jj + ω² M_jj)``, at least the largest gap (in the
+        coordinate's units, ``/ max_i |Φ_ij|``); velocities ``× ω``; each element's states
+        from the resulting length at its degree of freedom."""
+        st = self.structure
+        w = forcing.omega
+        g = forcing.amplitude * jnp.max(jnp.abs(st.dof_map.T @ self.load))
+        Lc = g / (jnp.diag(st.stiffness) + w**2 * jnp.diag(st.mass))
+        reach = jnp.maximum(jnp.max(jnp.abs(st.dof_map), axis=0), 1e-300)
+        Lc = jnp.maximum(jnp.maximum(Lc, self._length_floor() / reach), 1e-12)
+        Ldof = jnp.abs(st.dof_map) @ Lc
+        parts = [Lc, Lc * w]
+        for e, (ia, _) in zip(self.elements, self._dofs()):
+            parts.append(e.state_scale(Ldof[ia], w))
+        return jnp.concatenate(parts)
+
+    def linear_guess(self, forcing):
+        """The harmonic response of the system linearised at rest (open gaps, floating
+        impact absorbers, smoothed friction at its initial slope), at ``t = 0``."""
+        rest = self.rest_state()
+        A = jax.jacfwd(self._rate)(rest, 0.0)
+        b = jax.jacfwd(self._rate, argnums=1)(rest, 0.0)
+        n = A.shape[0]
+        X = jnp.linalg.solve(1j * forcing.omega * jnp.eye(n) - A,
+                             (b * forcing.amplitude).astype(complex))
+        return finite_or_zero(jnp.imag(X))  # F0 sin(ωt) = Im(F0 e^{iωt})
+
+    def stiffness_rate(self):
+        st = self.structure
+        MK = self.mass_inverse @ st.stiffness
+        MC = self.mass_inverse @ st.damping
+        rate = jnp.maximum(jnp.sqrt(jnp.linalg.norm(MK, 2)), jnp.linalg.norm(MC, 2))
+        hm = self._host_masses()
+        for e, (ia, _) in zip(self.elements, self._dofs()):
+            rate = jnp.maximum(rate, e.stiffness_rate(hm[ia]))
+        return rate
+
+    def oscillation_rate(self):
+        hm = self._host_masses()
+        rates = [e.oscillation_rate(hm[ia]) for e, (ia, _) in zip(self.elements, self._dofs())]
+        return jnp.max(jnp.stack(rates)) if rates else jnp.zeros(())
+
+    # -- what is measured ------------------------------------------------------------------
+    def _absorbers(self):
+        return [(nm, e, o) for nm, e, o in zip(self.element_names, self.elements,
+                                               self._offsets()[0]) if e.num_strokes]
+
+    @property
+    def output_names(self) -> tuple:
+        """The structure's degrees of freedom, then each absorber's (absolute) position."""
+        return tuple(self.structure.dof_names) + tuple(nm for nm, _, _ in self._absorbers())
+
+    def outputs(self, s):
+        x = self.structure.dof_map @ s[:self.num_coords]
+        hosts = [x[self.structure.dof_index(e.dof)] + e.strokes(s[o:o + e.num_states])[0]
+                 for _, e, o in self._absorbers()]
+        return jnp.concatenate([x, jnp.stack(hosts)]) if hosts else x
+
+    def observable(self, s):
+        return self.observe @ (self.structure.dof_map @ s[:self.num_coords])
+
+    def strokes(self, s):
+        parts = [e.strokes(s[o:o + e.num_states]) for _, e, o in self._absorbers()]
+        return jnp.concatenate(parts) if parts else jnp.zeros((0,), s.dtype)
+
+    def floating_pairs(self, stroke_max):
+        counts = [e.floats(stroke_max[i:i + 1]) for i, (_, e, _) in
+                  enumerate(self._absorbers())]
+        return sum(counts) if counts else jnp.zeros((), int)
+
+    # -- parameters ------------------------------------------------------------------------
+    def parameter_path(self, name: str) -> str:
+        head, _, field = name.partition(".")
+        if head in self.element_names and field:
+            i = self.element_names.index(head)
+            return f"elements.{i}." + self.elements[i].aliases().get(field, field)
+        return name
+
+    def parameter_names(self) -> list:
+        return [f"{nm}.{p}" for nm, e in zip(self.element_names, self.elements)
+                for p in e.parameter_names()]
+

@@ -10,6 +10,7 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from . import presets  # noqa: E402
+from ._abstract_system import AbstractSystem  # noqa: E402
 from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
 from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
 from ._elements import (  # noqa: E402
@@ -39,6 +40,7 @@ from ._shooting import Shooting  # noqa: E402
 from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._status import Status, describe  # noqa: E402
 from ._steady import SteadyState, solve_point, steady_state  # noqa: E402
+from ._structural import StructuralSystem  # noqa: E402
 from ._structure import (  # noqa: E402
     LinearStructure,
     cantilever_beam,
@@ -47,8 +49,6 @@ from ._structure import (  # noqa: E402
     structure_from_modes,
 )
 from ._sweep import FrequencyResponse, frequency_response  # noqa: E402
-from ._abstract_system import AbstractSystem  # noqa: E402
-from ._structural import StructuralSystem  # noqa: E402
 from ._system import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 
 __version__ = "0.1.0"

@@ -15,6 +15,7 @@ import dataclasses
 
 import equinox as eqx
 
+
 def resolve(system, name: str) -> str:
     """Dotted field path of parameter ``name`` in ``system`` (``system.parameter_path``),
     checked to exist."""

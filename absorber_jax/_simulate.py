@@ -10,13 +10,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, check_time_grid, is_traced, require_x64
 from ._custom_types import States, Times
 from ._custom_types import Status as StatusArray
 from ._forcing import AbstractForcing
 from ._status import Status, from_diffrax
 from ._stickslip import hybrid_solve
-from ._abstract_system import AbstractSystem
 
 # The automatic choice switches to an implicit solver when (largest rate x forcing period)
 # exceeds this.  Measured on the Coulomb scene (Table 4, N = 10 N, ω = 50 rad/s,

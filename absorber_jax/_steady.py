@@ -37,6 +37,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from ._abstract_system import AbstractSystem
 from ._checks import check_state, require_x64
 from ._flow import _Config, _flow, make_config, period_map, state_scale  # noqa: F401
 from ._forcing import Harmonic
@@ -45,7 +46,6 @@ from ._method import AbstractSteadyMethod
 from ._orbit import SAMPLES_PER_PERIOD, SteadyState, orbit_statistics  # noqa: F401
 from ._shooting import Shooting
 from ._status import Status
-from ._abstract_system import AbstractSystem
 
 # Periods marched by the retry before it polishes by shooting: enough to settle near a stable
 # orbit or onto a chaotic attractor's neighbourhood, where shooting from the marched state

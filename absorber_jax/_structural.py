@@ -15,7 +15,6 @@ themselves for a matrix model, modal coordinates for a modal one).
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np

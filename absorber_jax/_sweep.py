@@ -12,13 +12,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_time_grid, require_x64
 from ._forcing import Harmonic
 from ._params import replace_params, resolve
 from ._simulate import choose_solver
 from ._status import Status, describe
 from ._steady import SteadyState, make_config, march_then_shoot, resolve_method, solve_point
-from ._abstract_system import AbstractSystem
 
 # the per-point scalar results of the point solve (SteadyState), in CSV order
 FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState)
@@ -330,6 +330,19 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)
         if direction == "down":
             res = jax.tree_util.tree_map(lambda a: a[:, ::-1], res)
+        if method.retry:
+            # a point the branch could not be followed to (past a fold, a grazing) is
+            # re-solved by marching from rest then shooting: the sweep jumps to the
+            # attractor there, as a slow physical sweep would
+            flat = jax.tree_util.tree_map(lambda a: np.array(a).reshape((-1,) + a.shape[2:]),
+                                          res)
+            W = np.broadcast_to(om[None, :], (P, len(om))).reshape(-1)
+            PV = np.repeat(pvals, len(om), axis=0)
+            bad = np.flatnonzero(flat.status != Status.SUCCESS)
+            flat = _in_batches(flat, bad, lambda p: _retry_chunk(
+                system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
+                floquet), "retry", progress)
+            res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), flat)
     squeeze = params is None
     get = (lambda a: a[0]) if squeeze else (lambda a: a)
     return FrequencyResponse(

@@ -1,0 +1,191 @@
+"""The general system (issue 11): a linear structure carrying elements, through simulate,
+steady states, sweeps and design, against independent references (closed-form receptances,
+the event-exact piecewise-linear solution of NLvib's example 03 in reference_nlvib03.py, the
+two-mass systems of the paper, energy balance, central differences)."""
+
+import numpy as np
+import pytest
+import reference_nlvib03 as ref
+from test_structure import MASSES, RAYLEIGH, STOREYS, TMDS
+
+import absorber_jax as aj
+
+K03 = np.array([[1.0, -1.0], [-1.0, 2.0]])
+
+
+def nlvib03():
+    st = aj.structure_from_matrices(np.eye(2), K03, damping=0.03 * K03)
+    spring = aj.Contact("x1", gap=1.0, contact=aj.KelvinVoigt(stiffness=100.0, damping=0.0))
+    return aj.StructuralSystem(st, [spring], load="x2", observe="x2")
+
+
+def test_nlvib_example_03_matches_the_event_exact_reference_both_ways():
+    """Period-1 orbits along sweeps down (low branch to the lower fold, then the contact
+    branch) and up (the contact branch through its flip and Neimark–Sacker windows): the
+    fundamental harmonic of q2 and the state against the exact piecewise-linear orbit, and
+    every stability label against the exact Floquet multipliers."""
+    sysm = nlvib03()
+    om = np.concatenate([np.linspace(0.5, 0.8, 31), [0.745, 0.752]])
+    om.sort()
+    worst, labels = 0.0, 0
+    for direction in ("down", "up"):
+        fr = aj.frequency_response(sysm, om, amplitude=0.1, direction=direction)
+        assert fr.ok.all(), fr.failures()
+        assert fr.dof_names == ("x1", "x2")
+        for i, w in enumerate(om):
+            r = ref.periodic_orbit(w, x_guess=np.asarray(fr.states[i]))
+            assert r["converged"]
+            assert np.max(np.abs(r["x0"] - fr.states[i])) < 1e-6
+            q2 = ref.harmonic_amplitudes(r["x0"], w)["Q2"]
+            worst = max(worst, abs(fr.dof("x2", "harmonic")[i] - q2) / q2)
+            assert fr.harmonic[i] == fr.dof("x2", "harmonic")[i]      # observe="x2"
+            if abs(r["mu_max"] - 1) > 1e-3:
+                labels += 1
+                assert bool(fr.stable[i]) == (r["mu_max"] < 1), (direction, w, r["mu_max"])
+    print(f"NLvib 03: worst relative error of |Q2| {worst:.2e}; {labels} stability labels")
+    assert worst < 1e-6
+    # both ways saw the jump: down stays low at 0.7, up is on the contact branch there
+    assert labels > 30
+
+
+def test_two_mass_systems_are_special_cases():
+    """ImpactAbsorber / FrictionAbsorber = a one-DOF structure + ImpactDamper /
+    FrictionDamper: the same state scales, orbits and amplitudes (1e-10)."""
+    kv = aj.KelvinVoigt(stiffness=400.0, damping=20.0)
+    imp = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3, contact=kv)
+    law = aj.Dahl(mu_c=0.5, sigma0=1e5)
+    fa = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=0.1, k2=1e3, c2=0.5,
+                             normal_force=4.0, friction=law)
+    cases = [
+        (imp, aj.ImpactDamper("x1", m=0.4, gap=1e-3, contact=kv),
+         aj.structure_from_matrices([[1.0]], [[1e3]], damping=[[0.1]]), 2.0, 47.4),
+        (fa, aj.FrictionDamper("x1", m=0.1, k=1e3, c=0.5, normal_force=4.0, friction=law),
+         aj.structure_from_matrices([[1.0]], [[1e4]], damping=[[2.0]]), 20.0, 70.0),
+    ]
+    for old, element, st, F0, w in cases:
+        new = aj.StructuralSystem(st, [element], load="x1")
+        f = aj.Harmonic(amplitude=F0, omega=w)
+        np.testing.assert_allclose(new.state_scale(f), old.state_scale(f), rtol=1e-14)
+        kw = dict(solver="tsit5", rtol=1e-10, atol=1e-10, tol=1e-11)
+        a, b = aj.steady_state(old, f, **kw), aj.steady_state(new, f, **kw)
+        assert a.ok and b.ok
+        for field in ("amplitude", "rms", "harmonic", "absorber_amplitude"):
+            va, vb = float(getattr(a, field)), float(getattr(b, field))
+            assert abs(va - vb) <= 1e-10 * abs(va), (field, va, vb)
+        np.testing.assert_allclose(b.dof_amplitude, a.dof_amplitude, rtol=1e-10)
+        assert bool(a.stable) == bool(b.stable)
+        np.testing.assert_allclose(np.sort(np.abs(b.multipliers)),
+                                   np.sort(np.abs(a.multipliers)), rtol=1e-6, atol=1e-9)
+        # the same vector field (same internal state layout [x1, v1, u, w, z]) ...
+        rng = np.random.default_rng(0)
+        for _ in range(5):
+            s = rng.normal(size=old.num_states) * np.asarray(old.state_scale(f)) * 3
+            t = rng.uniform(0, 1)
+            np.testing.assert_allclose(new.vector_field(t, s, f), old.vector_field(t, s, f),
+                                       rtol=1e-12, atol=1e-12 * np.abs(
+                                           old.vector_field(t, s, f)).max())
+            assert abs(new.mechanical_energy(s) / old.mechanical_energy(s) - 1) < 1e-13
+        # ... so the same trajectory, to the integrator's tolerance
+        ts = np.linspace(0, 0.3, 31)
+        ta = aj.simulate(old, f, t1=0.3, ts=ts, rtol=1e-10, atol=1e-12)
+        tb = aj.simulate(new, f, t1=0.3, ts=ts, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(tb.dof("x1"), ta.x1, rtol=0, atol=1e-7 * np.abs(ta.x1).max())
+        np.testing.assert_allclose(tb.coupling_force[:, 0], ta.coupling_force, rtol=0,
+                                   atol=1e-6 * np.abs(ta.coupling_force).max())
+
+
+def _building(tmds_as_elements):
+    b = aj.shear_building(MASSES, STOREYS, rayleigh=RAYLEIGH)
+    load = dict(zip(b.dof_names, MASSES))         # ground acceleration of 1 m/s² per F0
+    if tmds_as_elements:
+        els = [aj.TunedMassDamper(d, m=m, k=k, c=c) for d, m, k, c in TMDS]
+        return aj.StructuralSystem(b, els, load=load, observe="floor3"), b
+    return aj.StructuralSystem(b.with_tuned_mass_dampers(TMDS), load=load,
+                               observe="floor3"), b
+
+
+def test_building_with_three_dampers_steady_states_equal_the_closed_form_receptance():
+    om = np.linspace(10.0, 80.0, 12)
+    for as_elements in (True, False):
+        sysm, bare = _building(as_elements)
+        H = np.asarray(bare.with_tuned_mass_dampers(TMDS).receptance(om))[:, :3, :3]
+        X = np.abs(H @ np.asarray(MASSES))                       # per unit F0
+        fr = aj.frequency_response(sysm, om, amplitude=1.0)
+        assert fr.ok.all() and fr.stable.all()
+        for j in range(3):
+            got = fr.dof(f"floor{j + 1}", "harmonic")
+            np.testing.assert_allclose(got, X[:, j], rtol=1e-6)
+        np.testing.assert_allclose(fr.amplitude, X[:, 2], rtol=1e-6)   # linear: p2p / 2
+
+
+def _beam_with_tip_damper(N, law=None):
+    beam = aj.cantilever_beam(8, length=1.0, EI=2.0e2, rho_A=1.0, modal_damping=0.01)
+    modal = beam.modal(3, dofs=["w4", "w8"])
+    w1 = float(modal.natural_frequencies()[0])
+    m = 0.05 * 0.25                          # 5 % of the first mode's tip modal mass (ρAL/4)
+    k = m * (w1 / 1.05) ** 2
+    law = aj.Coulomb(mu=0.5, eps=1e-6) if law is None else law
+    fd = aj.FrictionDamper("w8", m=m, k=k, c=0.0, normal_force=N, friction=law)
+    return aj.StructuralSystem(modal, [fd], load="w8"), modal, (m, k), w1
+
+
+def test_beam_tip_friction_damper_limits_and_energy_balance():
+    """N = 0: the linear absorber (k, c = 0) on the beam; N -> ∞: the damper mass stuck to
+    the tip; both against the modal beam's closed-form receptance.  Between them (stick-slip
+    at the tip), the energy put in by the load over one period equals what the structure's
+    damping and the friction dissipate."""
+    F0 = 0.05
+    sysm, modal, (m, k), w1 = _beam_with_tip_damper(0.0)
+    om = w1 * np.array([0.85, 0.97, 1.1])
+    lin = np.abs(np.asarray(modal.with_tuned_mass_dampers([("w8", m, k, 0.0)])
+                            .receptance(om))[:, 1, 1]) * F0
+    fr = aj.frequency_response(sysm, om, amplitude=F0)
+    assert fr.ok.all()
+    np.testing.assert_allclose(fr.dof("w8", "harmonic"), lin, rtol=1e-6)
+    # stuck: the damper's mass rides on the tip (added to the modal mass through Φ)
+    stuck_sys, *_ = _beam_with_tip_damper(200.0)
+    phi = np.asarray(modal.dof_map)[1]
+    Ms = np.asarray(modal.mass) + m * np.outer(phi, phi)
+    stuck = aj.LinearStructure(mass=Ms, damping=modal.damping, stiffness=modal.stiffness,
+                               dof_map=modal.dof_map, dof_names=modal.dof_names)
+    lin_s = np.abs(np.asarray(stuck.receptance(om))[:, 1, 1]) * F0
+    fr_s = aj.frequency_response(stuck_sys, om, amplitude=F0)
+    assert fr_s.ok.all()
+    err = np.max(np.abs(fr_s.dof("w8", "harmonic") - lin_s) / lin_s)
+    print("beam tip damper: stuck limit relative error", err)
+    assert err < 1e-4
+    # energy balance over one period of a stick-slip orbit
+    mid, *_ = _beam_with_tip_damper(0.02)
+    f = aj.Harmonic(amplitude=F0, omega=w1)
+    ss = aj.steady_state(mid, f)
+    assert ss.ok
+    T = 2 * np.pi / w1
+    tr = aj.simulate(mid, f, t1=T, y0=ss.state, ts=np.linspace(0, T, 5), energy=True,
+                     rtol=1e-10, atol=1e-12)
+    work, diss = float(tr.work[-1]), float(tr.dissipated[-1])
+    dE = float(tr.mechanical_energy()[-1] - tr.mechanical_energy()[0])
+    print(f"beam tip damper, one period: work {work:.6e}, dissipated {diss:.6e}, dE {dE:.1e}")
+    assert abs(work - diss - dE) < 1e-6 * work
+    assert abs(work - diss) < 1e-5 * work                  # periodic: nothing stored
+    # the friction did work: between the two linear limits
+    assert float(tr.dissipated[-1]) > 0
+
+
+@pytest.mark.parametrize("build, field", [
+    (lambda: aj.StructuralSystem(aj.shear_building([1.0], [1.0]), load="roof"), "load"),
+    (lambda: aj.StructuralSystem(aj.shear_building([1.0, 1.0], [1.0, 1.0]),
+                                 load={"floor1": 1.0, "floor2": 1.0}), "observe"),
+    (lambda: aj.StructuralSystem(aj.shear_building([1.0], [1.0]),
+                                 [aj.TunedMassDamper("floor2", m=1.0, k=1.0, c=0.0)],
+                                 load="floor1"), "dof"),
+    (lambda: aj.TunedMassDamper("floor1", m=-1.0, k=1.0, c=0.0), "m"),
+    (lambda: aj.FrictionDamper("floor1", m=1.0, k=1.0, c=0.0, normal_force=1.0,
+                               friction=aj.Coulomb(mu=0.5)), "eps"),
+    (lambda: aj.Contact("floor1", gap=1.0, contact=aj.KelvinVoigt(1.0, 0.0), sides="three"),
+     "sides"),
+    (lambda: aj.StructuralSystem(aj.shear_building([1.0], [1.0]), [3.0], load="floor1"),
+     "elements"),
+])
+def test_bad_structural_input_raises_naming_the_field(build, field):
+    with pytest.raises(ValueError, match=field):
+        build()

@@ -172,6 +172,189 @@ def cmd_tune(args):
     print(json.dumps({k: summary[k] for k in ("tuned", "peak_before_mm", "peak_after_mm")}))
 
 
+def _peak(omegas, values, ok):
+    """``(peak, omega)`` of ``values`` over the successful points (``None`` if none)."""
+    import numpy as np
+
+    v = np.where(ok, np.asarray(values, dtype=float), -np.inf)
+    if not np.isfinite(v).any():
+        return None, None
+    i = int(np.argmax(v))
+    return float(v[i]), float(omegas[i])
+
+
+def _plot_scene_dofs(frfs, dof_names, path, title):
+    """Amplitude of every structural degree of freedom against frequency: filled markers
+    stable, open markers unstable, red crosses failed points."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    colors = plt.get_cmap("tab10")
+    styles = {"parallel": "o", "up": "^", "down": "v"}
+    any_failed = any_unstable = False
+    for frf in frfs:
+        om = np.asarray(frf.omegas)
+        ok = np.asarray(frf.status) == 0
+        st = np.asarray(frf.stable).astype(bool)
+        mk = styles.get(frf.direction, "o")
+        tag = "" if len(frfs) == 1 else f" ({frf.direction})"
+        for j, name in enumerate(dof_names):
+            a = np.asarray(frf.dof(name, "amplitude"), dtype=float)
+            c = colors(j % 10)
+            ax.plot(om[ok], a[ok], "-", lw=0.8, color=c, label=f"{name}{tag}")
+            ax.plot(om[ok & st], a[ok & st], mk, ms=3, color=c)
+            if (ok & ~st).any():
+                any_unstable = True
+                ax.plot(om[ok & ~st], a[ok & ~st], mk, ms=5, mfc="none", color=c)
+        if (~ok).any():
+            any_failed = True
+            ax.plot(om[~ok], np.zeros((~ok).sum()), "x", color="red", clip_on=False)
+    if any_unstable:
+        ax.plot([], [], "o", mfc="none", color="0.3", label="unstable (open markers)")
+    if any_failed:
+        ax.plot([], [], "x", color="red", label="failed")
+    ax.set_yscale("log")
+    ax.set(xlabel="ω [rad/s]", ylabel="amplitude (half peak-to-peak) [m or rad]", title=title)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def cmd_scene(args):
+    import csv
+    import json
+    import os
+    import time
+
+    import jax
+    import numpy as np
+
+    from ._forcing import Harmonic
+    from ._params import get_param, replace_params
+    from ._scene import load_scene
+    from ._simulate import simulate
+    from ._sweep import frequency_response
+
+    t_start = time.perf_counter()
+    system, settings = load_scene(args.file)
+    sets = _parse_sets(args.set)
+    if sets:
+        system = replace_params(system, sets)
+    if args.omega is not None:
+        lo, hi, n = _parse_range(args.omega, "--omega")
+        omegas = np.linspace(lo, hi, n)
+    elif settings.omegas is not None:
+        omegas = settings.omegas
+    else:
+        raise ValueError(f"{args.file}: no [sweep] in the scene file; give it one "
+                         f"(omegas = {{start, stop, num}}) or pass --omega LO:HI:N")
+    amplitude = args.amplitude if args.amplitude is not None else settings.amplitude
+    direction = args.direction or settings.direction
+    method = args.method or settings.method
+    title = settings.title or os.path.splitext(os.path.basename(args.file))[0]
+    os.makedirs(args.out, exist_ok=True)
+    t_loaded = time.perf_counter()
+    out = frequency_response(system, omegas, amplitude=amplitude, method=method,
+                             direction=direction, chunk_size=args.chunk, progress=args.progress)
+    t_swept = time.perf_counter()
+    frfs = list(out) if isinstance(out, tuple) else [out]
+    csvs = []
+    for f in frfs:
+        name = ("frequency_response.csv" if len(frfs) == 1
+                else f"frequency_response_{f.direction}.csv")
+        f.to_csv(os.path.join(args.out, name))
+        csvs.append(name)
+    dof_names = list(system.structure.dof_names)
+    _plot_scene_dofs(frfs, dof_names, os.path.join(args.out, "frequency_response.png"),
+                     f"{title}\nF0 = {amplitude:g} ({method}, {direction})")
+
+    # summary: the observable's peak, every output's peak, failures (over all directions)
+    best, per_dof, failures, unstable = None, {}, [], 0
+    for f in frfs:
+        om = np.asarray(f.omegas)
+        ok = np.asarray(f.status) == 0
+        stable = np.asarray(f.stable).astype(bool)
+        unstable += int((ok & ~stable).sum())
+        a, w = _peak(om, f.amplitude, ok)
+        if a is not None and (best is None or a > best["amplitude"]):
+            i = int(np.flatnonzero(om == w)[0])
+            best = {"amplitude": a, "omega": w, "stable": bool(stable[i]),
+                    "direction": f.direction}
+        for name in f.dof_names:
+            a, w = _peak(om, f.dof(name, "amplitude"), ok)
+            if a is not None and (name not in per_dof or a > per_dof[name]["amplitude"]):
+                per_dof[name] = {"amplitude": a, "omega": w, "direction": f.direction}
+        failures += [{"direction": f.direction, "omega": float(om[i[-1]]), "status": text}
+                     for i, text in f.failures()]
+    params = {k: float(np.asarray(get_param(system, k))) for k in system.parameter_names()}
+    summary = {
+        "scene": os.path.abspath(args.file), "title": settings.title,
+        "dofs": dof_names, "outputs": list(system.output_names),
+        "elements": list(system.element_names), "parameters": params, "set": sets,
+        "amplitude": amplitude, "method": method, "direction": direction,
+        "omegas": {"start": float(omegas[0]), "stop": float(omegas[-1]), "num": len(omegas)},
+        "observable_peak": best, "dof_peaks": per_dof,
+        "points": len(omegas) * len(frfs), "failed": len(failures), "failures": failures,
+        "unstable": unstable, "csv": csvs, "png": "frequency_response.png",
+        "timing_s": {"load": round(t_loaded - t_start, 3), "sweep": round(t_swept - t_loaded, 3)},
+    }
+    if args.simulate:
+        omega = settings.simulate_omega or (best["omega"] if best else float(omegas[0]))
+        periods = settings.simulate_periods
+        t1 = periods * 2 * np.pi / omega
+        t = time.perf_counter()
+        tr = simulate(system, Harmonic(amplitude=amplitude, omega=omega), t1)
+        ys = jax.vmap(system.outputs)(jax.vmap(system.to_internal)(tr.ys))
+        ys, ts = np.asarray(ys), np.asarray(tr.ts)
+        forces = np.asarray(tr.coupling_force).reshape(len(ts), -1)
+        with open(os.path.join(args.out, "trajectory.csv"), "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["t", *system.output_names,
+                        *(f"force[{e}]" for e in system.element_names)])
+            w.writerows(np.column_stack([ts, ys, forces]).tolist())
+        last = ts >= ts[-1] - 10 * 2 * np.pi / omega
+        amps = {nm: float(0.5 * np.ptp(ys[last, j]))
+                for j, nm in enumerate(system.output_names)}
+        summary["simulation"] = {"omega": omega, "t1": t1, "periods": periods,
+                                 "solver": tr.solver, "steps": int(tr.num_steps),
+                                 "amplitude_last_10_periods": amps, "csv": "trajectory.csv",
+                                 "png": "trajectory.png"}
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(8, 4))
+        for j, nm in enumerate(dof_names):
+            ax.plot(ts, ys[:, j], lw=0.7, label=nm)
+        ax.set(xlabel="t [s]", ylabel="displacement [m or rad]",
+               title=f"{title}\nfrom rest at ω = {omega:.4g} rad/s")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(os.path.join(args.out, "trajectory.png"), dpi=110)
+        plt.close(fig)
+        summary["timing_s"]["simulate"] = round(time.perf_counter() - t, 3)
+    summary["timing_s"]["total"] = round(time.perf_counter() - t_start, 3)
+    with open(os.path.join(args.out, "summary.json"), "w") as fh:
+        json.dump(summary, fh, indent=2)
+    pk = (f"peak {best['amplitude']:.4g} at ω = {best['omega']:.4g} rad/s"
+          + ("" if best["stable"] else " (unstable)")) if best else "no successful point"
+    print(f"{title}: {summary['points']} points, {len(failures)} failed, {unstable} unstable; "
+          f"observable {pk}; sweep {summary['timing_s']['sweep']:.1f} s -> {args.out}")
+    for nm, v in per_dof.items():
+        print(f"  {nm:>12s}: peak {v['amplitude']:.4g} at ω = {v['omega']:.4g} rad/s")
+    if "simulation" in summary:
+        s = summary["simulation"]
+        print(f"  simulated {s['periods']} periods at ω = {s['omega']:.4g} rad/s "
+              f"({s['steps']} steps, {s['solver']}) -> trajectory.csv")
+
+
 def cmd_work_precision(args):
     import os
     import runpy
@@ -228,6 +411,21 @@ def build_parser():
     t.add_argument("--no-confirm", action="store_true", help="skip the marching check")
     t.add_argument("--out", default="tuning")
     t.set_defaults(func=cmd_tune)
+    sc = sub.add_parser("scene", help="a scene file (TOML or JSON: structure, elements, "
+                        "load, sweep): sweep, CSV, JSON summary and PNG per degree of freedom")
+    sc.add_argument("file", help="scene file (.toml or .json); schema: absorber_jax/_scene.py")
+    sc.add_argument("--out", default="scene_out", help="output folder")
+    sc.add_argument("--set", action="append", metavar="name=value",
+                    help="replace a parameter, e.g. tmd1.k=5e4 or friction1.N=0.05")
+    sc.add_argument("--omega", default=None, help="LO:HI:N [rad/s] (default the file's sweep)")
+    sc.add_argument("--amplitude", type=float, default=None, help="F0 [N] (default the file's)")
+    sc.add_argument("--direction", default=None, choices=["parallel", "up", "down", "both"])
+    sc.add_argument("--method", default=None, choices=["shooting", "marching"])
+    sc.add_argument("--chunk", type=int, default=64)
+    sc.add_argument("--simulate", action="store_true",
+                    help="also simulate from rest at the peak (or [simulate] omega)")
+    sc.add_argument("--progress", action="store_true", help="show a progress bar")
+    sc.set_defaults(func=cmd_scene)
     wp = sub.add_parser("work-precision", help="error against run time for every law and solver")
     wp.add_argument("--out", default="work_precision")
     wp.add_argument("--resume", action="store_true",

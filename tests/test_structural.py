@@ -76,7 +76,7 @@ def test_two_mass_systems_are_special_cases():
         assert bool(a.stable) == bool(b.stable)
         np.testing.assert_allclose(np.sort(np.abs(b.multipliers)),
                                    np.sort(np.abs(a.multipliers)), rtol=1e-6, atol=1e-9)
-        # the same vector field (same internal state layout [x1, v1, u, w, z]) ...
+        # the same vector field (same internal state layout [x1, v1, u, w, z])
         rng = np.random.default_rng(0)
         for _ in range(5):
             s = rng.normal(size=old.num_states) * np.asarray(old.state_scale(f)) * 3
@@ -85,13 +85,7 @@ def test_two_mass_systems_are_special_cases():
                                        rtol=1e-12, atol=1e-12 * np.abs(
                                            old.vector_field(t, s, f)).max())
             assert abs(new.mechanical_energy(s) / old.mechanical_energy(s) - 1) < 1e-13
-        # ... so the same trajectory, to the integrator's tolerance
-        ts = np.linspace(0, 0.3, 31)
-        ta = aj.simulate(old, f, t1=0.3, ts=ts, rtol=1e-10, atol=1e-12)
-        tb = aj.simulate(new, f, t1=0.3, ts=ts, rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(tb.dof("x1"), ta.x1, rtol=0, atol=1e-7 * np.abs(ta.x1).max())
-        np.testing.assert_allclose(tb.coupling_force[:, 0], ta.coupling_force, rtol=0,
-                                   atol=1e-6 * np.abs(ta.coupling_force).max())
+        # (so the same trajectories: the steady states above are integrated ones)
 
 
 def _building(tmds_as_elements):

@@ -208,12 +208,25 @@ def _keys(d, path, required=(), optional=()):
             raise ValueError(f"{path}.{k} is required (keys here: {', '.join(allowed)})")
 
 
+class _Absent(Exception):
+    """Raised by :func:`_present` for an optional key that is missing."""
+
+
+def _present(d, key, path, required, what=""):
+    """``d[key]``; a missing required key is a field-named ValueError, a missing optional one
+    raises :class:`_Absent` (callers return their default)."""
+    if key in d:
+        return d[key]
+    if required:
+        raise ValueError(f"{path}.{key} is required{what}")
+    raise _Absent
+
+
 def _number(d, key, path, *, lo=None, lo_open=False, hi=None, default=None, required=True):
-    if key not in d:
-        if required:
-            raise ValueError(f"{path}.{key} is required")
+    try:
+        v = _present(d, key, path, required)
+    except _Absent:
         return default
-    v = d[key]
     where = f"{path}.{key}"
     rng = (("(" if lo_open or lo is None else "[") + ("-inf" if lo is None else f"{lo:g}")
            + ", " + ("inf)" if hi is None else f"{hi:g}]"))
@@ -225,11 +238,10 @@ def _number(d, key, path, *, lo=None, lo_open=False, hi=None, default=None, requ
 
 
 def _integer(d, key, path, *, lo=1, default=None, required=True):
-    if key not in d:
-        if required:
-            raise ValueError(f"{path}.{key} is required")
+    try:
+        v = _present(d, key, path, required)
+    except _Absent:
         return default
-    v = d[key]
     ok = _is_number(v) and math.isfinite(v) and float(v).is_integer() and v >= lo
     if not ok:
         raise ValueError(f"{path}.{key} must be an integer >= {lo}, got {_show(v)}")
@@ -259,11 +271,10 @@ def _boolean(d, key, path, *, default):
 
 
 def _vector(d, key, path, *, required=True, lo=None, lo_open=False, allow_scalar=False):
-    if key not in d:
-        if required:
-            raise ValueError(f"{path}.{key} is required")
+    try:
+        v = _present(d, key, path, required)
+    except _Absent:
         return None
-    v = d[key]
     where = f"{path}.{key}"
     if allow_scalar and _is_number(v):
         v = [v]
@@ -284,11 +295,10 @@ def _vector(d, key, path, *, required=True, lo=None, lo_open=False, allow_scalar
 
 
 def _matrix(d, key, path, *, required=True):
-    if key not in d:
-        if required:
-            raise ValueError(f"{path}.{key} is required")
+    try:
+        v = _present(d, key, path, required)
+    except _Absent:
         return None
-    v = d[key]
     where = f"{path}.{key}"
     if not isinstance(v, list) or not v or not all(isinstance(r, list) for r in v):
         raise ValueError(f"{where} must be a matrix (a non-empty list of rows), got {_show(v)}")
@@ -303,11 +313,10 @@ def _matrix(d, key, path, *, required=True):
 
 
 def _names(d, key, path, *, required=True, known=None):
-    if key not in d:
-        if required:
-            raise ValueError(f"{path}.{key} is required")
+    try:
+        v = _present(d, key, path, required)
+    except _Absent:
         return None
-    v = d[key]
     where = f"{path}.{key}"
     if not isinstance(v, list) or not v or not all(isinstance(s, str) and s for s in v):
         raise ValueError(f"{where} must be a non-empty list of names, got {_show(v)}")

@@ -108,6 +108,45 @@ class AbstractElement(eqx.Module):
         """Short parameter names mapped to field paths within the element."""
         return {}
 
+    # -- exact stick–slip (one element per system, see StructuralSystem's hybrid members) --
+    @property
+    def exact(self) -> bool:
+        """True when the element's friction is the exact nonsmooth law (event-driven)."""
+        return False
+
+    def slip_velocity(self, z):
+        """Sliding velocity ``V`` whose sign is the slip mode (exact elements only)."""
+        raise NotImplementedError
+
+    def evaluate_mode(self, x, v, z, friction_force):
+        """:meth:`evaluate` with the friction force given (exact elements only)."""
+        raise NotImplementedError
+
+    def holding_friction(self, z, host_acceleration, host_compliance):
+        """Friction force [N] that keeps it stuck, from the host's acceleration without its
+        force and the host's acceleration per unit force on it (exact elements only)."""
+        raise NotImplementedError
+
+    def stuck_rate(self, rate):
+        """Its state rate while stuck (the sliding coordinates frozen)."""
+        raise NotImplementedError
+
+    def breakaway(self):
+        """Largest friction force [N] it holds while stuck (exact elements only)."""
+        raise NotImplementedError
+
+    def kinetic(self, speed):
+        """Friction force magnitude [N] while slipping at ``speed`` (exact elements only)."""
+        raise NotImplementedError
+
+    def inertia(self):
+        """The mass [kg] whose inertia force scales its holding force (exact elements)."""
+        raise NotImplementedError
+
+    def stop_slip(self, z):
+        """Its states with the sliding velocity set exactly to zero (end of a slip)."""
+        raise NotImplementedError
+
     def parameter_names(self) -> list:
         fields = [f.name for f in dataclasses.fields(self)
                   if f.init and f.name not in ("dof", "other", "name", "contact", "friction")]
@@ -128,15 +167,15 @@ def _check_contact(owner, law):
                          f"HuntCrossley), got {type(law).__name__}")
 
 
-def _check_friction(owner, law):
+def _check_friction(owner, law, *, exact_ok):
     if not isinstance(law, AbstractFrictionLaw):
         raise ValueError(f"{owner}.friction must be a friction law (Coulomb, Stribeck, Dahl "
                          f"or LuGre), got {type(law).__name__}")
-    if law.exact:
+    if law.exact and not exact_ok:
         raise ValueError(
-            f"{owner}.friction: exact stick–slip (events) is available on FrictionAbsorber; "
-            f"on a structure give a smoothing length (e.g. Coulomb(mu, eps=1e-5)) or a "
-            f"bristle law (Dahl, LuGre)")
+            f"{owner}.friction: exact stick–slip (events) is available in FrictionDamper; "
+            f"here give a smoothing length (e.g. Coulomb(mu, eps=1e-5)) or a bristle law "
+            f"(Dahl, LuGre)")
 
 
 class _Absorber(AbstractElement):
@@ -279,7 +318,7 @@ class FrictionDamper(_Absorber):
         nonnegative("FrictionDamper", "k", self.k)
         nonnegative("FrictionDamper", "c", self.c)
         nonnegative("FrictionDamper", "normal_force", self.normal_force)
-        _check_friction("FrictionDamper", self.friction)
+        _check_friction("FrictionDamper", self.friction, exact_ok=True)
 
     @property
     def num_law_states(self) -> int:
@@ -311,6 +350,38 @@ class FrictionDamper(_Absorber):
 
     def aliases(self):
         return {"N": "normal_force", **_law_aliases(self.friction, "friction")}
+
+    # -- exact stick–slip: the same law and signs as FrictionAbsorber (X = -u, V = -w) -----
+    @property
+    def exact(self) -> bool:
+        return self.friction.exact
+
+    def slip_velocity(self, z):
+        return -z[1]
+
+    def evaluate_mode(self, x, v, z, friction_force):
+        f = self.c * z[1] + self.k * z[0] - friction_force
+        return jnp.stack([f, jnp.zeros_like(f)]), (f, _zeros(0, f))
+
+    def holding_friction(self, z, host_acceleration, host_compliance):
+        # stuck: the absorber moves with its host, -f/m = a0 + h f, so f = -m a0 / (1 + m h)
+        f = -self.m * host_acceleration / (1.0 + self.m * host_compliance)
+        return self.c * z[1] + self.k * z[0] - f
+
+    def stuck_rate(self, rate):
+        return jnp.zeros_like(rate)
+
+    def breakaway(self):
+        return self.friction.breakaway_force(self.normal_force)
+
+    def kinetic(self, speed):
+        return self.friction.kinetic_force(speed, self.normal_force)
+
+    def inertia(self):
+        return self.m
+
+    def stop_slip(self, z):
+        return z.at[1].set(0.0)
 
 
 class TunedMassDamper(_Absorber):
@@ -421,7 +492,7 @@ class FrictionContact(AbstractElement):
 
     def __check_init__(self):
         nonnegative("FrictionContact", "normal_force", self.normal_force)
-        _check_friction("FrictionContact", self.friction)
+        _check_friction("FrictionContact", self.friction, exact_ok=False)
 
     @property
     def num_states(self) -> int:

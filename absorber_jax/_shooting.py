@@ -29,9 +29,14 @@ def _root_solver(name, tol):
         # Newton with a minimum-norm (SVD) step: quadratic convergence, and the singular
         # Jacobian of a floating absorber's orbit family is handled by the pseudo-inverse
         return optx.Newton(rtol=tol, atol=tol, linear_solver=lx.SVD())
+    if name == "chord":
+        # the Jacobian of the first iterate reused (one monodromy per solve instead of one
+        # per Newton step): linear convergence, cheap where the state is large and the
+        # guess close (a sweep seeded from its neighbour)
+        return optx.Chord(rtol=tol, atol=tol, linear_solver=lx.SVD())
     if name == "lm":
         return optx.LevenbergMarquardt(rtol=tol, atol=tol)
-    raise ValueError(f"root solver must be 'newton' or 'lm', got {name!r}")
+    raise ValueError(f"root solver must be 'newton', 'chord' or 'lm', got {name!r}")
 
 
 def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_floquet=True,
@@ -55,7 +60,7 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
     # (forward mode; the minimum-norm SVD solve copes with a floating absorber's null space)
     adjoint = optx.ImplicitAdjoint(linear_solver=lx.SVD())
     x_guess = jax.lax.stop_gradient(x_guess)
-    if root == "newton":
+    if root in ("newton", "chord"):
         sol = optx.root_find(residual, solver, x_guess, (system, forcing), max_steps=newton_steps,
                              throw=False, adjoint=adjoint)
     else:
@@ -80,7 +85,9 @@ class Shooting(AbstractSteadyMethod):
       impacting orbit is accurate to ~1e-7 at the default rtol, which bounds what Newton
       can reach).
     - ``newton_steps``: Newton iteration budget.
-    - ``root``: ``"newton"`` (minimum-norm SVD steps) or ``"lm"`` (Levenberg–Marquardt).
+    - ``root``: ``"newton"`` (minimum-norm SVD steps), ``"chord"`` (the first Jacobian
+      reused: one monodromy per solve, for large structural states with close guesses) or
+      ``"lm"`` (Levenberg–Marquardt).
     - ``retry``: a failed solve is retried by marching from rest and polishing the marched
       orbit by shooting, before it is flagged.
     """

@@ -108,6 +108,9 @@ class StructuralSystem(AbstractSystem):
         self.observe = _weights(structure, observe, "observe")
         self.mass_inverse = (jnp.linalg.inv(structure.mass) if mass_inverse is None
                              else jnp.asarray(mass_inverse, dtype=float))
+        if sum(bool(e.exact) for e in elements) > 1:
+            raise ValueError("StructuralSystem.elements: at most one friction damper with an "
+                             "exact (event-driven) law; give the others an eps")
         names = self.element_names
         clash = set(names) & set(structure.dof_names)
         if len(set(names)) != len(names) or clash:
@@ -177,26 +180,111 @@ class StructuralSystem(AbstractSystem):
         return jnp.stack([x[ia], x[ib] if ib >= 0 else jnp.zeros_like(x[ia])])
 
     # -- dynamics ----------------------------------------------------------------------
-    def _rate(self, s, f_ext):
-        """d/dt of ``s`` under the external force ``F = f_ext`` [N]."""
-        st = self.structure
-        Phi = st.dof_map
+    def _forces(self, s, f_ext, exact_force=None, skip=None):
+        """DOF forces (load + elements) and each element's ``aux``; the exact element's
+        friction force is ``exact_force`` when given; element ``skip`` is left out."""
+        Phi = self.structure.dof_map
         q, qd, zs = self._pieces(s)
         x, v = Phi @ q, Phi @ qd
         f = self.load * f_ext
         auxes = []
-        for e, (ia, ib), z in zip(self.elements, self._dofs(), zs):
-            fe, aux = e.evaluate(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
+        for i, (e, (ia, ib), z) in enumerate(zip(self.elements, self._dofs(), zs)):
+            xe, ve = self._pair(x, ia, ib), self._pair(v, ia, ib)
+            if exact_force is not None and i == self._exact_index():
+                fe, aux = e.evaluate_mode(xe, ve, z, exact_force)
+            else:
+                fe, aux = e.evaluate(xe, ve, z)
+            auxes.append(aux)
+            if i == skip:
+                continue
             f = f.at[ia].add(fe[0])
             if ib >= 0:
                 f = f.at[ib].add(fe[1])
-            auxes.append(aux)
-        qdd = self.mass_inverse @ (Phi.T @ f - st.damping @ qd - st.stiffness @ q)
+        return f, auxes
+
+    def _accelerations(self, s, f):
+        st = self.structure
+        q, qd, _ = self._pieces(s)
+        return self.mass_inverse @ (st.dof_map.T @ f - st.damping @ qd - st.stiffness @ q)
+
+    def _rate(self, s, f_ext, exact_force=None, stuck=None):
+        """d/dt of ``s`` under the external force ``F = f_ext`` [N] (the exact element's
+        friction force given, its sliding coordinates frozen when ``stuck``)."""
+        Phi = self.structure.dof_map
+        q, qd, zs = self._pieces(s)
+        x, v = Phi @ q, Phi @ qd
+        f, auxes = self._forces(s, f_ext, exact_force)
+        qdd = self._accelerations(s, f)
         a = Phi @ qdd
-        rates = [e.state_rate(self._pair(x, ia, ib), self._pair(v, ia, ib),
-                              self._pair(a, ia, ib), z, aux)
-                 for e, (ia, ib), z, aux in zip(self.elements, self._dofs(), zs, auxes)]
+        rates = []
+        for i, (e, (ia, ib), z, aux) in enumerate(zip(self.elements, self._dofs(), zs, auxes)):
+            r = e.state_rate(self._pair(x, ia, ib), self._pair(v, ia, ib),
+                             self._pair(a, ia, ib), z, aux)
+            if stuck is not None and i == self._exact_index():
+                r = jnp.where(stuck, e.stuck_rate(r), r)
+            rates.append(r)
         return jnp.concatenate([qd, qdd, *rates])
+
+    # -- exact stick–slip of one friction damper (modes 0 stick, ±1 slip with sign(V)) -----
+    def _exact_index(self):
+        idx = [i for i, e in enumerate(self.elements) if e.exact]
+        return idx[0] if idx else -1
+
+    @property
+    def hybrid(self) -> bool:
+        return self._exact_index() >= 0
+
+    def _exact(self, s):
+        i = self._exact_index()
+        e = self.elements[i]
+        off = self._offsets()[0][i]
+        return i, e, s[off:off + e.num_states], self._dofs()[i][0]
+
+    def holding_force(self, t, s, forcing):
+        """Friction force [N] that keeps the exact damper stuck to its host."""
+        i, e, z, ia = self._exact(s)
+        f, _ = self._forces(s, forcing(t), exact_force=jnp.zeros(()), skip=i)
+        phi = self.structure.dof_map[ia]
+        a0 = phi @ self._accelerations(s, f)
+        return e.holding_friction(z, a0, phi @ self.mass_inverse @ phi)
+
+    def _holding_mode(self, t, s, forcing):
+        _, e, _, _ = self._exact(s)
+        f = self.holding_force(t, s, forcing)
+        stuck = jnp.abs(f) <= e.breakaway()
+        return jnp.where(stuck, 0, jnp.where(f > 0, 1, -1))
+
+    def mode_of(self, t, s, forcing):
+        _, e, z, _ = self._exact(s)
+        V = e.slip_velocity(z)
+        return jnp.where(V > 0, 1, jnp.where(V < 0, -1, self._holding_mode(t, s, forcing)))
+
+    def mode_rate(self, t, s, forcing, mode):
+        _, e, z, _ = self._exact(s)
+        slip = mode * e.kinetic(jnp.abs(e.slip_velocity(z)))
+        fnl = jnp.where(mode == 0, self.holding_force(t, s, forcing), slip)
+        return self._rate(s, forcing(t), exact_force=fnl, stuck=mode == 0)
+
+    def switch_function(self, t, s, forcing, mode):
+        # dimensionless as in FrictionAbsorber: the holding force over the breakaway limit
+        # plus the inertia force m ω² L of the host's motion scale; the sliding velocity
+        # over the host's velocity scale L ω (rising through 0 when the slip stops)
+        i, e, z, _ = self._exact(s)
+        cap = e.breakaway()
+        f = self.holding_force(t, s, forcing)
+        scale = self.state_scale(forcing)[self._offsets()[0][i] + 1]     # L ω at the host
+        f_ref = cap + e.inertia() * forcing.omega * scale
+        return jnp.where(mode == 0, (jnp.abs(f) - cap) / jnp.maximum(f_ref, 1e-300),
+                         -mode * e.slip_velocity(z) / jnp.maximum(scale, 1e-30))
+
+    def next_mode(self, t, s, forcing, mode):
+        i, e, z, _ = self._exact(s)
+        off = self._offsets()[0][i]
+        z = jnp.where(mode == 0, z, e.stop_slip(z))
+        s = s.at[off:off + e.num_states].set(z)
+        f = self.holding_force(t, s, forcing)
+        new = jnp.where(mode == 0, jnp.where(f > 0, 1, -1), self._holding_mode(t, s, forcing))
+        return new, s
 
     def vector_field(self, t, s, forcing):
         return self._rate(s, forcing(t))

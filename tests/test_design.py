@@ -75,7 +75,7 @@ def closed_form_x1(M, k, m, k1, c1, w):
     return abs(np.linalg.solve(Z, [1.0, 0.0])[0])
 
 
-@pytest.mark.parametrize("mu", [0.05, 0.2])
+@pytest.mark.parametrize("mu", [0.05, pytest.param(0.2, marks=pytest.mark.slow)])
 def test_tmd_tuning_reaches_the_h_infinity_optimum(mu):
     M, k = 1.0, 1e3
     wn = np.sqrt(k / M)
@@ -176,6 +176,7 @@ def test_tune_bad_input():
         aj.tune(system, ["k1"], (30, 40), amplitude=2.0, bounds={"k1": (500.0, 900.0)})
 
 
+@pytest.mark.slow
 def test_gradients_stay_finite_through_grazing_and_stick_slip():
     # 60 rad/s: the floating orbit's relative amplitude is 0.769 mm; sweep the clearance
     # through it (impacting -> grazing -> floating)

@@ -81,7 +81,7 @@ def test_70_rad_s_case_converges_stable_with_quadratic_newton():
     np.testing.assert_allclose(mu[-1], 0.86, atol=0.01)
 
 
-@pytest.mark.parametrize("law", ["coulomb", "stribeck"])
+@pytest.mark.parametrize("law", [pytest.param("coulomb", marks=pytest.mark.slow), "stribeck"])
 def test_shooting_and_marching_agree_in_stick_slip(law):
     system = scene(law=aj.Coulomb(**COULOMB) if law == "coulomb" else aj.Stribeck(**STRIBECK))
     key = lambda m: np.sort_complex(np.round(np.asarray(m), 8))
@@ -132,6 +132,7 @@ def test_monodromy_matches_finite_differences_through_the_switches():
 
 
 # (N = 4 N, the 70 rad/s case, sticks every cycle; tests/test_reverse.py checks jax.grad there)
+@pytest.mark.slow
 @pytest.mark.parametrize("N", [2.0])
 def test_gradient_wrt_normal_force_matches_central_differences_in_stick_slip(N):
     _, grads, status = aj.value_and_grad(scene(N=N), ["N"], [70.0], amplitude=20.0,
@@ -144,7 +145,7 @@ def test_gradient_wrt_normal_force_matches_central_differences_in_stick_slip(N):
     np.testing.assert_allclose(grads["N"], fd, rtol=1e-4)
 
 
-@pytest.mark.parametrize("ratio", [0.8, 1.5, 3.0])
+@pytest.mark.parametrize("ratio", [0.8, pytest.param(1.5, marks=pytest.mark.slow), 3.0])
 def test_den_hartog_at_the_defaults(ratio):
     m, k, mu, N, P = 1.0, 1e4, 0.5, 4.0, 10.0
     system = aj.FrictionAbsorber(m1=m, k1=k, c1=0.0, m2=1e7, k2=0.0, c2=0.0, normal_force=N,
@@ -218,6 +219,7 @@ def test_smoothed_law_with_explicit_solver_gets_the_monodromy_right():
     assert int(aj.steady_state(system, FORCING, retry=False).iterations) <= 8
 
 
+@pytest.mark.slow
 def test_method_objects_equal_their_keyword_spelling():
     by_object = aj.steady_state(scene(), FORCING, method=aj.Shooting(tol=1e-8, newton_steps=20))
     by_name = aj.steady_state(scene(), FORCING, method="shooting", tol=1e-8, newton_steps=20)

@@ -12,6 +12,7 @@ _jax.config.update("jax_enable_x64", True)
 from . import presets  # noqa: E402
 from ._abstract_system import AbstractSystem  # noqa: E402
 from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
+from ._continuation import Bifurcation, Branch, PseudoArclength, continuation  # noqa: E402
 from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
 from ._elements import (  # noqa: E402
     AbstractElement,
@@ -64,6 +65,7 @@ __all__ = [
     "LinearStructure", "cantilever_beam", "shear_building", "structure_from_matrices",
     "structure_from_modes", "AbstractSystem", "StructuralSystem", "AbstractElement", "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
+    "Bifurcation", "Branch", "PseudoArclength", "continuation",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",

@@ -1,0 +1,681 @@
+"""Pseudo-arclength continuation of periodic orbits, with bifurcation detection and location
+and branch switching at period doublings.
+
+Unknowns ``z = (x, p)``: the orbit's internal state at ``t = 0 mod nT`` divided by the state
+scale at the start (``system.state_scale``, fixed along the branch) and the continuation
+parameter divided by ``|its start value|``.  The residual is the shooting residual of the
+steady-state layer, ``Φ_{nT}(x; p) - x`` (:func:`absorber_jax._flow.period_map`, the same
+flow, tolerances and derivatives as :class:`Shooting`); its Jacobian ``[M - I, ∂Φ/∂p]`` comes
+from one forward-mode pass over ``n + 1`` directions.
+
+- **Predictor**: ``z + h t`` along the unit tangent ``t`` (null vector of the Jacobian,
+  oriented to continue the previous one).
+- **Corrector**: Newton on ``[Φ - x; t·(z - z_pred)] = 0`` (minimum-norm least-squares
+  steps: a floating absorber's orbit family leaves the bordered matrix singular), until the
+  scaled residual is below ``tol``.  The Jacobian of the last corrector iterate gives the next
+  tangent and the Floquet multipliers (eigenvalues of ``M``) for free; the point's
+  statistics and stability label are the point solve's (:func:`absorber_jax._orbit._finish`).
+- **Step control**: the step grows after quick corrections, shrinks after slow ones, and is
+  halved when the corrector fails or the tangent turns by more than ``max_angle``.
+- **Bifurcations** between two accepted points, by sign changes of test functions: fold
+  (the tangent's parameter component), period doubling (``Π(μ_i + 1)``: a real multiplier
+  through -1), Neimark–Sacker (a complex pair crossing the unit circle).  Each is located by
+  the Illinois variant of regula falsi on the arclength, every evaluation a corrector solve
+  on the hyperplane through the predicted point.
+- **Branch switching** at a period doubling: the period-``2n`` branch starts from the
+  bifurcating orbit pushed along the eigenvector of the multiplier -1, on the hyperplane
+  normal to it, and is followed until it leaves the bounds or rejoins the period-``n``
+  branch (at the other end of a flip window).
+
+References: E. L. Allgower & K. Georg, *Introduction to Numerical Continuation Methods*
+(SIAM, 2003), ch. 2 and 6; Yu. A. Kuznetsov, *Elements of Applied Bifurcation Theory*
+(Springer, 2004), ch. 10 (test functions); R. Seydel, *Practical Bifurcation and Stability
+Analysis* (Springer, 2010), ch. 7 (periodic orbits by shooting).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._abstract_system import AbstractSystem
+from ._checks import check_scalar, check_state, require_x64
+from ._flow import _Config, accurate_tangents, make_config, period_map, state_scale
+from ._forcing import Harmonic
+from ._orbit import SteadyState, _finish
+from ._params import replace_params, resolve
+from ._shooting import Shooting
+from ._status import Status, describe
+from ._steady import steady_state
+
+FORCING_PARAMETERS = ("omega", "amplitude")
+KINDS = ("fold", "period_doubling", "neimark_sacker")
+# the corrector stops once a Newton step is below STEP_TOL * tol (and the residual below tol)
+STEP_TOL = 10.0
+# a sharp turn of the tangent is accepted as a corner once the step is reduced this much
+CORNER_REDUCTION = 16.0
+
+
+class PseudoArclength(eqx.Module):
+    """Pseudo-arclength continuation and its options (lengths in the scaled unknowns: the
+    orbit state over its scale at the start, the parameter over its start value).
+
+    - ``step``: first arclength step; ``min_step``, ``max_step``: its bounds (the branch
+      stops, flagged, when a step below ``min_step`` still fails).
+    - ``max_points``: points on the branch at most.
+    - ``tol``: corrector tolerance on the scaled shooting residual ``|Φ - x|∞``.
+    - ``newton_steps``: corrector iterations per step.
+    - ``max_angle``: largest turn of the tangent between two points [rad].
+    - ``locate_tol``: bifurcations are located to this arclength (scaled).
+    """
+
+    step: float = eqx.field(static=True, default=0.01)
+    min_step: float = eqx.field(static=True, default=1e-6)
+    max_step: float = eqx.field(static=True, default=0.05)
+    max_points: int = eqx.field(static=True, default=400)
+    tol: float = eqx.field(static=True, default=1e-6)
+    newton_steps: int = eqx.field(static=True, default=12)
+    max_angle: float = eqx.field(static=True, default=0.35)
+    locate_tol: float = eqx.field(static=True, default=1e-9)
+
+    def __check_init__(self):
+        for name in ("step", "min_step", "max_step", "tol", "locate_tol"):
+            check_scalar("PseudoArclength", name, getattr(self, name), lo=0.0, lo_open=True)
+        if not self.min_step <= self.step <= self.max_step:
+            raise ValueError("PseudoArclength: need min_step <= step <= max_step, got "
+                             f"{self.min_step:g}, {self.step:g}, {self.max_step:g}")
+        check_scalar("PseudoArclength", "max_angle", self.max_angle, lo=0.0, hi=math.pi / 2,
+                     lo_open=True)
+        for name in ("max_points", "newton_steps"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 2:
+                raise ValueError(f"PseudoArclength.{name} must be an integer >= 2, got {v!r}")
+
+
+class Bifurcation(eqx.Module):
+    """A bifurcation found on a :class:`Branch`.
+
+    ``kind``: ``"fold"``, ``"period_doubling"`` or ``"neimark_sacker"``; ``value``: the
+    located parameter value; ``amplitude``: the observable's amplitude there; ``state``:
+    public orbit state; ``multipliers``: Floquet multipliers there; ``index``: it lies
+    between branch points ``index`` and ``index + 1``; ``located``: the location converged
+    to ``locate_tol``; ``evaluations``: corrector solves spent locating it."""
+
+    kind: str = eqx.field(static=True)
+    value: float
+    amplitude: float
+    state: np.ndarray
+    multipliers: np.ndarray
+    index: int = eqx.field(static=True)
+    period_multiple: int = eqx.field(static=True)
+    located: bool = eqx.field(static=True)
+    evaluations: int = eqx.field(static=True)
+
+    def summary(self):
+        return dict(kind=self.kind, value=float(self.value), amplitude=float(self.amplitude),
+                    index=self.index, period_multiple=self.period_multiple,
+                    located=self.located, evaluations=self.evaluations,
+                    multipliers=[[float(m.real), float(m.imag)] for m in self.multipliers])
+
+
+class Branch(eqx.Module):
+    """A branch of period-``n`` orbits from :func:`continuation`.
+
+    ``values``: the parameter along the branch (in the order followed: it turns back at
+    folds); ``steady``: the point solve's :class:`SteadyState`, batched (its fields read
+    through: ``amplitude``, ``dof_amplitude``, ``stable``, ``multipliers``, ``status`` ...);
+    ``bifurcations``: the :class:`Bifurcation` s found, in branch order; ``termination``:
+    why the branch ended (``"bounds"``, ``"max_points"``, ``"rejoined"``, ``"closed"``,
+    ``"step_collapse"`` or ``"start_failed"``); ``steps``: corrector iterations per point
+    are ``iterations``."""
+
+    parameter: str = eqx.field(static=True)
+    values: np.ndarray
+    steady: SteadyState
+    bifurcations: tuple
+    period_multiple: int = eqx.field(static=True)
+    termination: str = eqx.field(static=True)
+    dof_names: tuple = eqx.field(static=True, default=())
+
+    @property
+    def states(self):
+        return self.steady.state
+
+    @property
+    def multipliers(self):
+        return self.steady.multipliers
+
+    @property
+    def ok(self):
+        return self.status == Status.SUCCESS
+
+    def __len__(self):
+        return int(np.asarray(self.values).shape[0])
+
+    def dof(self, name, field="amplitude"):
+        """``dof_<field>`` (amplitude, rms or harmonic) at the degree of freedom ``name``."""
+        if name not in self.dof_names:
+            raise ValueError(f"dof must be one of {list(self.dof_names)}, got {name!r}")
+        return np.asarray(getattr(self.steady, "dof_" + field))[..., self.dof_names.index(name)]
+
+    def of_kind(self, kind):
+        """The bifurcations of one kind."""
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+        return [b for b in self.bifurcations if b.kind == kind]
+
+    def summary(self):
+        st = np.asarray(self.stable)
+        return dict(parameter=self.parameter, period_multiple=self.period_multiple,
+                    points=len(self), termination=self.termination,
+                    range=[float(np.min(self.values)), float(np.max(self.values))],
+                    stable_points=int(st.sum()), failed_points=int((~self.ok).sum()),
+                    corrector_iterations_median=float(np.median(self.iterations)),
+                    bifurcations=[b.summary() for b in self.bifurcations])
+
+    def to_csv(self, path):
+        """One row per branch point: the parameter, the scalar results, the largest
+        multiplier modulus, the per-degree-of-freedom amplitudes, the status text."""
+        dofs = [f"{k}[{d}]" for k in ("amplitude", "rms", "harmonic") for d in self.dof_names]
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["point", self.parameter, "amplitude", "rms", "harmonic",
+                        "absorber_amplitude", "period_multiple", "stable", "max_multiplier",
+                        "iterations", "residual", *dofs, "status", "status_text"])
+            mults = np.abs(np.asarray(self.multipliers))
+            for i in range(len(self)):
+                d = [float(np.asarray(getattr(self.steady, "dof_" + k))[i, j])
+                     for k in ("amplitude", "rms", "harmonic") for j in range(len(self.dof_names))]
+                w.writerow([i, float(self.values[i]), float(self.amplitude[i]),
+                            float(self.rms[i]), float(self.harmonic[i]),
+                            float(self.absorber_amplitude[i]), self.period_multiple,
+                            int(self.stable[i]), float(np.max(mults[i])),
+                            int(self.iterations[i]), float(self.residual[i]), *d,
+                            int(self.status[i]), describe(self.status[i])])
+
+    def to_json(self, path):
+        with open(path, "w") as fh:
+            json.dump(self.summary(), fh, indent=2)
+
+
+for _name in (f.name for f in dataclasses.fields(SteadyState)
+              if f.name not in ("state", "multipliers", "period_multiple")):
+    setattr(Branch, _name, property(lambda self, n=_name: getattr(self.steady, n),
+                                    doc=f"``SteadyState.{_name}`` per branch point."))
+
+
+# --------------------------------------------------------------------------- the problem
+
+
+class _Problem(eqx.Module):
+    """The shooting residual in the continuation's scaled unknowns ``z = (x, p)``."""
+
+    system: AbstractSystem
+    forcing: Harmonic
+    s0: jax.Array
+    pscale: jax.Array
+    cfg: _Config
+    parameter: str = eqx.field(static=True)
+    n: int = eqx.field(static=True)
+
+    def at(self, p):
+        """(system, forcing) at the scaled parameter ``p``."""
+        return _set_value(self.system, self.forcing, self.parameter, p * self.pscale)
+
+    def residual(self, z):
+        x, p = z[:-1], z[-1]
+        sysp, forcp = self.at(p)
+        sc = state_scale(sysp, forcp)
+        xn, st = period_map(sysp, forcp, x * self.s0 / sc, self.n, self.cfg)
+        return xn * sc / self.s0 - x, st
+
+
+def _set_value(system, forcing, name, value):
+    if name == "omega":
+        return system, eqx.tree_at(lambda f: f.omega, forcing, value)
+    if name == "amplitude":
+        return system, eqx.tree_at(lambda f: f.amplitude, forcing, value)
+    return replace_params(system, {name: value}, check=False), forcing
+
+
+def _get_value(system, forcing, name):
+    if name in FORCING_PARAMETERS:
+        return float(getattr(forcing, name))
+    from ._params import get_param
+
+    return float(get_param(system, name))
+
+
+def _evaluate(prob, z):
+    def f(z):
+        r, st = prob.residual(z)
+        return r, (r, st)
+
+    J, (r, st) = jax.jacfwd(f, has_aux=True)(z)
+    bad = (st != Status.SUCCESS) | ~jnp.all(jnp.isfinite(r)) | ~jnp.all(jnp.isfinite(J))
+    return jnp.where(jnp.isfinite(J), J, 0.0), jnp.where(jnp.isfinite(r), r, 0.0), st, bad
+
+
+def _tangent(J, t_prev):
+    """Unit null vector of ``J`` (``n × (n+1)``) oriented along ``t_prev``."""
+    A = jnp.concatenate([J, t_prev[None]], axis=0)
+    e = jnp.zeros(A.shape[0]).at[-1].set(1.0)
+    t = jnp.linalg.lstsq(A, e)[0]
+    t = t / jnp.linalg.norm(t)
+    return t * jnp.where(t @ t_prev < 0, -1.0, 1.0)
+
+
+@eqx.filter_jit
+def _corrector(prob, z_pred, t_prev, tol, newton_steps):
+    """Newton on ``[Φ(z) - x; t_prev·(z - z_pred)] = 0`` from ``z_pred``; returns the point,
+    its Jacobian, the new tangent, the point's :class:`SteadyState` and the iterations."""
+    J0, r0, st0, bad0 = _evaluate(prob, z_pred)
+
+    def cond(c):
+        z, J, r, st, bad, k, done = c
+        return ~done
+
+    def body(c):
+        z, J, r, st, bad, k, done = c
+        A = jnp.concatenate([J, t_prev[None]], axis=0)
+        rhs = -jnp.concatenate([r, (t_prev @ (z - z_pred))[None]])
+        dz = jnp.linalg.lstsq(A, rhs)[0]
+        z = z + dz
+        J, r, st, bad = _evaluate(prob, z)
+        k = k + 1
+        # converged: residual within tol after a step that small (the residual is nonlinear
+        # in the parameter even on a linear structure, and a residual just below tol can
+        # mean a state error of tol / (1 - |μ|) on a lightly damped orbit; one more step
+        # from there leaves ~tol²)
+        conv = (jnp.max(jnp.abs(r)) <= tol) & (jnp.max(jnp.abs(dz)) <= STEP_TOL * tol)
+        done = bad | conv | (k >= newton_steps)
+        return z, J, r, st, bad, k, done
+
+    # at least one Newton step (a predictor within tolerance would otherwise be kept with an
+    # error of order tol)
+    done0 = bad0
+    z, J, r, st, bad, k, _ = jax.lax.while_loop(
+        cond, body, (z_pred, J0, r0, st0, bad0, jnp.asarray(0), done0))
+    res = jnp.max(jnp.abs(r))
+    # the tangent and the multipliers from a Jacobian whose integration steps are controlled
+    # on the tangents too (see _flow.accurate_tangents): the corrector's forward-mode
+    # Jacobians steer Newton well but carry errors up to ~1e-3 in the multipliers of an
+    # orbit through a stiff contact
+    prob_t = dataclasses.replace(prob, cfg=accurate_tangents(prob.cfg))
+    J2, _, st2, bad2 = _evaluate(prob_t, z)
+    J = jnp.where(bad2, J, J2)
+    status = jnp.where(st != Status.SUCCESS, st,
+                       jnp.where(bad, Status.NONFINITE,
+                                 jnp.where(res <= tol, Status.SUCCESS, Status.NO_CONVERGENCE)))
+    t = _tangent(J, t_prev)
+    n = z.shape[0] - 1
+    mult = jnp.linalg.eigvals(J[:, :n] + jnp.eye(n))
+    sysp, forcp = prob.at(z[-1])
+    sc = state_scale(sysp, forcp)
+    ss = _finish(sysp, forcp, z[:-1] * prob.s0 / sc, prob.n, prob.cfg, status, res, k,
+                 n_cap=prob.n, multipliers=mult)
+    return z, t, ss
+
+
+@eqx.filter_jit
+def _scale_at(prob, p):
+    return state_scale(*prob.at(p))
+
+
+@eqx.filter_jit
+def _jacobian(prob, z):
+    return _evaluate(prob, z)[0]
+
+
+@eqx.filter_jit
+def _defect(prob, z):
+    """``|Φ(x) - x|∞`` of the period-``prob.n`` map at ``z``."""
+    r, st = prob.residual(z)
+    return jnp.where(st == Status.SUCCESS, jnp.max(jnp.abs(r)), jnp.inf)
+
+
+# ----------------------------------------------------------------- test functions
+
+
+def _pd_test(mult):
+    """Product of ``(μ_i + 1)`` (real; changes sign when a real multiplier crosses -1),
+    and the located quantity: the real multiplier nearest -1, plus 1."""
+    prod = float(np.prod(mult + 1.0).real)
+    real = mult[np.abs(mult.imag) <= 1e-7 * np.maximum(1.0, np.abs(mult))]
+    near = real[np.argmin(np.abs(real + 1.0))].real + 1.0 if real.size else np.nan
+    return np.sign(prod), near
+
+
+def _complex_upper(mult):
+    """Multipliers of the complex pairs (upper half plane), away from +1 and -1."""
+    return mult[(mult.imag > 1e-6 * np.maximum(1.0, np.abs(mult)))
+                & (np.abs(mult - 1.0) > 1e-3) & (np.abs(mult + 1.0) > 1e-3)]
+
+
+def _ns_test(mult):
+    c = _complex_upper(mult)
+    out = int(np.sum(np.abs(c) > 1.0))
+    near = (np.abs(c[np.argmin(np.abs(np.abs(c) - 1.0))]) - 1.0) if c.size else np.nan
+    return c.size, out, near
+
+
+def _events(a, b):
+    """The bifurcation kinds whose test functions change sign between points ``a`` and
+    ``b`` (dicts with the tangent ``t`` and multipliers ``mult``)."""
+    kinds = []
+    if np.sign(a["t"][-1]) * np.sign(b["t"][-1]) < 0:
+        kinds.append("fold")
+    if _pd_test(a["mult"])[0] * _pd_test(b["mult"])[0] < 0:
+        kinds.append("period_doubling")
+    ca, oa, _ = _ns_test(a["mult"])
+    cb, ob, _ = _ns_test(b["mult"])
+    if ca == cb and ca > 0 and oa != ob:
+        kinds.append("neimark_sacker")
+    return kinds
+
+
+def _g(kind, point):
+    if kind == "fold":
+        return float(point["t"][-1])
+    if kind == "period_doubling":
+        return float(_pd_test(point["mult"])[1])
+    return float(_ns_test(point["mult"])[2])
+
+
+# ------------------------------------------------------------------------ the driver
+
+
+class _Driver:
+    """Holds the compiled corrector's inputs and the branch being built."""
+
+    def __init__(self, prob, method, bounds):
+        self.prob, self.method = prob, method
+        self.lo, self.hi = (b / float(prob.pscale) for b in bounds)
+
+    def solve(self, z_pred, t_prev):
+        z, t, ss = _corrector(self.prob, jnp.asarray(z_pred), jnp.asarray(t_prev),
+                              self.method.tol, self.method.newton_steps)
+        ss = jax.tree_util.tree_map(np.asarray, ss)
+        z = np.asarray(z)
+        return dict(z=z, t=np.asarray(t), ss=ss, xi=z[:-1] * np.asarray(self.prob.s0),
+                    mult=np.asarray(ss.multipliers), ok=int(ss.status) == Status.SUCCESS)
+
+    def rescale(self, point):
+        """Rescale the state unknowns to the orbit at ``point`` (its state over the state
+        scale there, at least 1): steps and tolerances then measure changes relative to
+        the orbit's size, as it grows through a resonance.  The compiled corrector is
+        reused (the scale is an array input).  Returns ``point`` in the new unknowns."""
+        s_old = np.asarray(self.prob.s0)
+        sc = np.asarray(_scale_at(self.prob, jnp.asarray(point["z"][-1])))
+        s_new = sc * max(1.0, float(np.max(np.abs(point["xi"] / sc))))
+        self.prob = eqx.tree_at(lambda q: q.s0, self.prob, jnp.asarray(s_new))
+        z = np.append(point["xi"] / s_new, point["z"][-1])
+        t = np.append(point["t"][:-1] * s_old / s_new, point["t"][-1])
+        return dict(point, z=z, t=t / np.linalg.norm(t))
+
+    def locate(self, kind, a, h):
+        """Illinois regula falsi on the arclength ``σ ∈ [0, h]`` from point ``a`` along its
+        tangent for a zero of the test function of ``kind``."""
+        lo, hi = 0.0, h
+        glo, ghi = _g(kind, a), None
+        b = self.solve(a["z"] + h * a["t"], a["t"])
+        ghi = _g(kind, b)
+        best, evals, side = b, 1, 0
+        if not (np.isfinite(glo) and np.isfinite(ghi)) or glo * ghi > 0:
+            return best, evals, False
+        converged = False
+        while evals < 60:
+            s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
+            if not lo < s < hi:
+                s = 0.5 * (lo + hi)
+            p = self.solve(a["z"] + s * a["t"], a["t"])
+            evals += 1
+            if not p["ok"]:
+                break
+            gp = _g(kind, p)
+            best = p
+            if not np.isfinite(gp):
+                break
+            if gp * ghi < 0:
+                lo, glo = hi, ghi
+                hi, ghi = s, gp
+                side = 0
+            else:
+                hi, ghi = s, gp
+                if side == -1:
+                    glo *= 0.5
+                side = -1
+            if abs(hi - lo) <= self.method.locate_tol or gp == 0.0:
+                converged = True
+                break
+        return best, evals, converged
+
+
+def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "omega", *,
+                 bounds, method: PseudoArclength | None = None, n: int = 1,
+                 direction: str = "up", start=None, guess=None, solver=None, rtol=1e-9,
+                 atol=1e-9, max_steps=200_000, locate=True, progress=False) -> Branch:
+    """Follow a branch of period-``n`` orbits of ``system`` under ``forcing`` in
+    ``parameter`` by pseudo-arclength continuation (see the module docstring), through
+    folds, with the bifurcations on it detected and located.
+
+    **Arguments**
+
+    - ``parameter``: ``"omega"`` (the forcing frequency [rad/s]), ``"amplitude"`` (F0 [N]) or
+      any name of ``system.parameter_names()`` (``k1``, ``gap``, ``N``, ``tmd1.k`` ...).
+    - ``bounds``: ``(lo, hi)``: the branch ends where the parameter leaves them (the last
+      point lands on the bound); the start value must lie inside.
+    - ``method``: a :class:`PseudoArclength` with the step and corrector options.
+    - ``n``: period multiple of the orbits followed.
+    - ``direction``: ``"up"`` or ``"down"``: the parameter's direction at the start.
+    - ``start``: None (the first orbit is solved by :func:`steady_state` from ``guess``, at
+      the forcing's and system's current parameter value), or a period-doubling
+      :class:`Bifurcation` of a branch of this system in this parameter: the period-``2n``
+      branch born there is followed (branch switching); ``direction`` is then ignored.
+    - ``solver``, ``rtol``, ``atol``, ``max_steps``: the integrator (as in
+      :func:`steady_state`; chosen at the lowest frequency of the bounds when continuing in
+      ``omega``).
+    - ``locate``: locate each bifurcation (a few corrector solves each); otherwise they are
+      reported at the nearer branch point.
+    - ``progress``: a tqdm bar over the branch points.
+
+    **Returns** a :class:`Branch`.
+
+    ```python
+    import absorber_jax as aj
+    system, forcing = aj.presets.impact("kelvin_voigt", omega=40.0)
+    br = aj.continuation(system, forcing, "omega", bounds=(30.0, 70.0))
+    br.values, br.amplitude, br.stable, [(b.kind, b.value) for b in br.bifurcations]
+    ```
+    """
+    require_x64("continuation")
+    if not isinstance(system, AbstractSystem):
+        raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
+                         f"StructuralSystem, got {type(system).__name__}")
+    if not isinstance(forcing, Harmonic):
+        raise ValueError("continuation needs a periodic forcing: forcing must be a Harmonic, "
+                         f"got {type(forcing).__name__}")
+    method = PseudoArclength() if method is None else method
+    if not isinstance(method, PseudoArclength):
+        raise ValueError(f"method must be a PseudoArclength(...), got {method!r}")
+    if not isinstance(parameter, str):
+        raise ValueError(f"parameter must be a name, got {parameter!r}")
+    if parameter not in FORCING_PARAMETERS:
+        resolve(system, parameter)
+    if direction not in ("up", "down"):
+        raise ValueError(f"direction must be 'up' or 'down', got {direction!r}")
+    if not isinstance(n, int) or not 1 <= n <= 64:
+        raise ValueError(f"n must be an integer in [1, 64], got {n!r}")
+    try:
+        lo, hi = (float(b) for b in bounds)
+    except (TypeError, ValueError):
+        raise ValueError(f"bounds must be (lo, hi), got {bounds!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise ValueError(f"bounds must be finite with lo < hi, got {bounds!r}")
+    for b in (lo, hi):                      # both ends must be valid parameter values
+        if parameter == "omega":
+            check_scalar("continuation", "bounds (omega)", b, lo=0.0, lo_open=True)
+        elif parameter == "amplitude":
+            check_scalar("continuation", "bounds (amplitude)", b, lo=0.0)
+        else:
+            replace_params(system, {parameter: b}, check=True)
+    if start is not None:
+        if not isinstance(start, Bifurcation) or start.kind != "period_doubling":
+            raise ValueError("start must be a period-doubling Bifurcation of a Branch, got "
+                             f"{start!r}")
+        system, forcing = _set_value(system, forcing, parameter, float(start.value))
+        n = 2 * start.period_multiple
+    value0 = _get_value(system, forcing, parameter)
+    if not lo <= value0 <= hi:
+        raise ValueError(f"the start value of {parameter!r} ({value0:g}) must lie inside "
+                         f"bounds ({lo:g}, {hi:g})")
+    check_state("guess", guess, system.num_states)
+
+    cfg_forcing = forcing
+    if parameter == "omega":
+        cfg_forcing = Harmonic(amplitude=forcing.amplitude, omega=lo)
+    cfg = make_config(system, cfg_forcing, solver, rtol, atol, max_steps)
+    s0 = state_scale(system, forcing)
+    pscale = abs(value0) if value0 != 0 else max(abs(lo), abs(hi))
+    prob = _Problem(system=system, forcing=forcing, s0=s0, pscale=jnp.asarray(pscale),
+                    cfg=cfg, parameter=parameter, n=n)
+    drv = _Driver(prob, method, (lo, hi))
+    dof_names = tuple(system.output_names)
+    p0 = value0 / pscale
+
+    if start is None:
+        ss = steady_state(system, forcing, method=Shooting(n=n, tol=method.tol),
+                          guess=guess, solver=solver, rtol=rtol, atol=atol,
+                          max_steps=max_steps)
+        x0 = np.asarray(system.to_internal(ss.state)) / np.asarray(s0)
+        e = np.zeros(x0.size + 1)
+        e[-1] = 1.0 if direction == "up" else -1.0
+        if int(ss.status) != Status.SUCCESS:
+            first = dict(ss=jax.tree_util.tree_map(np.asarray, ss), ok=False)
+        else:
+            first = drv.solve(np.append(x0, p0), e)
+        rejoin = None
+    else:
+        first, rejoin = _switch(drv, system, forcing, start, s0, p0, cfg, parameter, pscale)
+
+    points = [drv.rescale(first) if first["ok"] else first]
+    bifs = []
+    termination = "start_failed" if not first["ok"] else None
+    h = method.step
+
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=method.max_points, desc=f"continuation in {parameter}",
+               disable=not progress)
+    bar.update(1)
+    while termination is None:
+        if len(points) >= method.max_points:
+            termination = "max_points"
+            break
+        a = points[-1]
+        b = drv.solve(a["z"] + h * a["t"], a["t"])
+        turn = float(np.clip(b["t"] @ a["t"], -1.0, 1.0)) if b["ok"] else -1.0
+        # a corner (the tangent turning abruptly where a contact starts to graze: the flow's
+        # Jacobian varies like the square root of the distance to grazing) is accepted once
+        # the step is below step / CORNER_REDUCTION and the corrector still converges
+        sharp = (b["ok"] and math.acos(turn) > method.max_angle
+                 and h > method.step / CORNER_REDUCTION)
+        if not b["ok"] or sharp:
+            if h <= method.min_step * (1 + 1e-12):
+                termination = "step_collapse"
+                break
+            h = max(0.5 * h, method.min_step)
+            continue
+        p_b = b["z"][-1]
+        if not drv.lo <= p_b <= drv.hi:
+            # land on the bound: a natural-parameter corrector from the interpolated point
+            bound = drv.hi if p_b > drv.hi else drv.lo
+            w = (bound - a["z"][-1]) / (p_b - a["z"][-1])
+            zb = a["z"] + w * (b["z"] - a["z"])
+            zb[-1] = bound
+            e = np.zeros_like(zb)
+            e[-1] = np.sign(p_b - a["z"][-1])
+            c = drv.solve(zb, e)
+            if c["ok"]:
+                c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
+                b = c
+            termination = "bounds"
+        for kind in _events(a, b):
+            bifs.append(_bifurcation(drv, kind, a, b, len(points) - 1, locate, system,
+                                     float(np.linalg.norm(b["z"] - a["z"]))))
+        points.append(b)
+        bar.update(1)
+        bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
+        if rejoin is not None and rejoin(b["xi"], b["z"][-1]):
+            termination = "rejoined"
+            break
+        s_now = np.asarray(drv.prob.s0)
+        back = np.append((b["xi"] - points[0]["xi"]) / s_now, b["z"][-1] - points[0]["z"][-1])
+        if len(points) > 10 and np.linalg.norm(back) < 0.5 * h:
+            termination = "closed"
+            break
+        points[-1] = drv.rescale(b)
+        it = int(b["ss"].iterations)
+        if it <= 3:
+            h = min(1.5 * h, method.max_step)
+        elif it >= 6:
+            h = max(0.6 * h, method.min_step)
+    bar.close()
+    steady = jax.tree_util.tree_map(lambda *a: np.stack(a), *[q["ss"] for q in points])
+    values = np.array([q["z"][-1] * pscale if "z" in q else value0 for q in points])
+    return Branch(parameter=parameter, values=values, steady=steady, bifurcations=tuple(bifs),
+                  period_multiple=n, termination=termination, dof_names=dof_names)
+
+
+def _bifurcation(drv, kind, a, b, index, locate, system, h):
+    if locate:
+        p, evals, ok = drv.locate(kind, a, h)
+    else:
+        p, evals, ok = (a if abs(_g(kind, a)) < abs(_g(kind, b)) else b), 0, False
+    ss = p["ss"]
+    return Bifurcation(kind=kind, value=float(p["z"][-1] * drv.prob.pscale),
+                       amplitude=float(ss.amplitude), state=np.asarray(ss.state),
+                       multipliers=np.asarray(ss.multipliers), index=index,
+                       period_multiple=drv.prob.n, located=bool(ok), evaluations=evals)
+
+
+def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
+    """The first point of the period-``2n`` branch born at the period doubling ``bif``, and
+    the test that it has rejoined the period-``n`` branch."""
+    n1 = bif.period_multiple
+    prob1 = _Problem(system=system, forcing=forcing, s0=s0, pscale=jnp.asarray(pscale), cfg=cfg,
+                     parameter=parameter, n=n1)
+    x_star = np.asarray(system.to_internal(jnp.asarray(bif.state))) / np.asarray(s0)
+    z_star = np.append(x_star, p0)
+    J = np.asarray(_jacobian(prob1, jnp.asarray(z_star)))
+    m = J.shape[0]
+    mu, vecs = np.linalg.eig(J[:, :m] + np.eye(m))
+    v = np.real(vecs[:, np.argmin(np.abs(mu + 1.0))])
+    v = v / np.linalg.norm(v)
+    tv = np.append(v, 0.0)
+    first = None
+    for delta in (0.02, 0.05, 0.1, 0.01, 0.005):
+        cand = drv.solve(z_star + delta * tv, tv)
+        # a genuine period-2n orbit, not the period-n one it branched from
+        if cand["ok"] and float(_defect(prob1, jnp.asarray(cand["z"]))) > 1e3 * drv.method.tol:
+            first = cand
+            break
+    if first is None:
+        first = dict(ss=jax.tree_util.tree_map(np.asarray, cand["ss"]), ok=False, z=cand["z"],
+                     t=cand["t"], mult=cand["mult"])
+        first["ss"] = eqx.tree_at(lambda s: s.status, first["ss"],
+                                  np.asarray(Status.NO_CONVERGENCE))
+    d_first = float(_defect(prob1, jnp.asarray(first["z"]))) if first["ok"] else 0.0
+
+    def rejoined(xi, p):
+        z = np.append(xi / np.asarray(s0), p)
+        return float(_defect(prob1, jnp.asarray(z))) < 0.05 * d_first
+
+    return first, rejoined

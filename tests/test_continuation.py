@@ -1,0 +1,216 @@
+"""Continuation of periodic orbits (issue 12): branches through folds, bifurcations detected
+and located, branch switching at a period doubling, against independent references: a
+closed-form linear FRF, the jump frequencies of slow stepped marching sweeps written with
+exact piecewise-linear flows (reference_jumps.py), and the exact continuation of NLvib's
+example 03 (reference_nlvib03.py)."""
+
+import numpy as np
+import pytest
+import reference_jumps as rj
+import reference_nlvib03 as ref03
+from reference_jumps import slow_sweep_jumps
+from test_structural import nlvib03
+
+import absorber_jax as aj
+
+HARD = dict(c=0.02, F0=0.05, k_c=3.0, g=0.5)   # reference_jumps' scene (m = k = 1)
+
+
+def hardening():
+    """One DOF, m = k = 1, c = 0.02, a one-sided spring k_c = 3 beyond q = 0.5."""
+    st = aj.structure_from_matrices(np.eye(1), np.eye(1), damping=HARD["c"] * np.eye(1))
+    stop = aj.Contact("x1", gap=HARD["g"], contact=aj.KelvinVoigt(stiffness=HARD["k_c"],
+                                                                  damping=0.0))
+    return aj.StructuralSystem(st, [stop], load="x1")
+
+
+def test_linear_branch_follows_the_closed_form_frf_without_bifurcations():
+    """A TMD on one DOF (linear): the branch in ω is the closed-form receptance (1e-6), every
+    point stable, no bifurcation, and it ends on the bound."""
+    k, m, c, kt, mt, ct, F0 = 1e3, 1.0, 0.4, 50.0, 0.05, 0.3, 2.0
+    st = aj.structure_from_matrices(np.eye(1) * m, np.eye(1) * k, damping=np.eye(1) * c)
+    sysm = aj.StructuralSystem(st, [aj.TunedMassDamper("x1", m=mt, k=kt, c=ct)], load="x1")
+    br = aj.continuation(sysm, aj.Harmonic(amplitude=F0, omega=20.0), "omega",
+                         bounds=(20.0, 45.0), method=aj.PseudoArclength(step=0.05, max_step=0.1))
+    w = br.values
+    zt = kt + 1j * w * ct
+    d_tmd = zt * (-mt * w**2) / (zt - mt * w**2)          # the TMD as a dynamic stiffness
+    X = F0 / (k - m * w**2 + 1j * w * c + d_tmd)
+    err = np.max(np.abs(br.dof("x1", "harmonic") - np.abs(X)) / np.abs(X))
+    print(f"linear branch: {len(br)} points, worst relative error {err:.1e}")
+    assert err < 1e-6
+    assert br.termination == "bounds" and np.isclose(w[-1], 45.0, rtol=1e-12)
+    assert np.all(np.diff(w) > 0) and len(br) >= 8
+    assert br.bifurcations == () and np.all(br.stable) and np.all(br.ok)
+
+
+def test_folds_are_the_jump_frequencies_of_slow_sweeps():
+    """Hardening oscillator with hysteresis: the two folds of the continuation are where
+    slow stepped marching sweeps (exact piecewise-linear flows, independent of any
+    continuation) jump down (sweeping up) and up (sweeping down), to 1e-3 (we see ~1e-5); the
+    branch between the folds is unstable, outside them stable."""
+    up = slow_sweep_jumps("up", **HARD)
+    down = slow_sweep_jumps("down", **HARD)
+    br = aj.continuation(hardening(), aj.Harmonic(amplitude=HARD["F0"], omega=0.8), "omega",
+                         bounds=(0.8, 1.6))
+    folds = br.of_kind("fold")
+    assert [b.kind for b in br.bifurcations] == ["fold", "fold"], br.bifurcations
+    hi, lo = folds[0].value, folds[1].value
+    e_up = abs(hi - up["W_jump"]) / up["W_jump"]
+    e_down = abs(lo - down["W_jump"]) / down["W_jump"]
+    print(f"folds {hi:.8f} {lo:.8f}; jumps {up['W_jump']:.8f} {down['W_jump']:.8f}; "
+          f"relative differences {e_up:.1e} {e_down:.1e}")
+    assert e_up < 1e-3 and e_down < 1e-3
+    # the amplitude at the upper fold is the one the up sweep had just before falling off
+    assert abs(folds[0].amplitude - up["amp_before"]) < 1e-2 * up["amp_before"]
+    # stability: stable before the first fold, unstable between, stable after the second
+    i1, i2 = folds[0].index, folds[1].index
+    assert np.all(br.stable[:i1]) and np.all(br.stable[i2 + 2:])
+    assert not np.any(br.stable[i1 + 2:i2])
+    assert br.termination == "bounds" and np.all(br.ok)
+
+
+def test_multipliers_at_a_branch_point_equal_steady_state():
+    """The Floquet multipliers the continuation reads off its final Jacobian equal those of
+    steady_state at the same parameter, and both equal the exact piecewise-linear ones
+    (reference_jumps.periodic_orbit) to 1e-5: on the stable upper branch, on the unstable
+    middle branch, and in another parameter (the gap)."""
+    system = hardening()
+    # from 1.0 (below the lower fold: the resonant orbit is the only one) up past the fold
+    br = aj.continuation(system, aj.Harmonic(amplitude=HARD["F0"], omega=1.0), "omega",
+                         bounds=(0.95, 1.3), method=aj.PseudoArclength(max_points=60))
+    folds = br.of_kind("fold")
+    assert folds, "the upper fold must be passed"
+
+    def check(sysm, f, branch, i, **scene):
+        ss = aj.steady_state(sysm, f, guess=branch.states[i])
+        assert int(ss.status) == 0
+        ex = rj.periodic_orbit(float(f.omega), x_guess=np.asarray(branch.states[i]),
+                               **dict(HARD, **scene))
+        assert ex["converged"]
+        a, b, e = (np.sort_complex(np.asarray(m))
+                   for m in (branch.multipliers[i], ss.multipliers, ex["mu"]))
+        print(f"{branch.parameter} = {branch.values[i]:.5f}: branch {a}, steady_state {b}, "
+              f"exact {e}")
+        assert np.max(np.abs(a - e)) < 1e-5 and np.max(np.abs(b - e)) < 1e-5
+        assert bool(branch.stable[i]) == bool(ss.stable) == bool(np.max(np.abs(e)) < 1)
+        assert abs(branch.amplitude[i] - ex["amp"]) < 1e-5 * ex["amp"]
+
+    for i in (3, folds[0].index + 4):
+        check(system, aj.Harmonic(amplitude=HARD["F0"], omega=float(br.values[i])), br, i)
+    assert not bool(br.stable[folds[0].index + 4])            # the middle branch: a saddle
+    # continuation in a system parameter: the gap, from 0.5 up (the amplitude falls to the
+    # linear one once the stop is out of reach)
+    f = aj.Harmonic(amplitude=HARD["F0"], omega=1.1)
+    bg = aj.continuation(system, f, "contact1.gap", bounds=(0.5, 3.0),
+                         method=aj.PseudoArclength(step=0.05, max_step=0.2))
+    assert bg.termination == "bounds" and np.all(bg.ok)
+    lin = HARD["F0"] / abs(1 - 1.1**2 + 1j * 1.1 * HARD["c"])
+    assert abs(bg.amplitude[-1] - lin) < 1e-6 * lin          # gap 3 > amplitude: linear
+    j = len(bg) // 3
+    g = float(bg.values[j])
+    check(aj.replace_params(system, {"contact1.gap": g}), f, bg, j, g=g)
+
+
+@pytest.fixture(scope="module")
+def nlvib_branch():
+    sysm = nlvib03()
+    br = aj.continuation(sysm, aj.Harmonic(amplitude=0.1, omega=0.8), "omega",
+                         bounds=(0.5, 0.8), direction="down")
+    return sysm, br
+
+
+def test_nlvib03_bifurcations_match_the_exact_continuation(nlvib_branch):
+    """NLvib example 03 from Ω = 0.8 down to 0.5 along one branch: both folds, both period
+    doublings (the flip window) and both Neimark–Sacker points, located, against the exact
+    piecewise-linear continuation (1e-4 relative; the smoothed contact and the corrector
+    tolerance set what we see, ~1e-5)."""
+    _, br = nlvib_branch
+    ex = ref03.continuation()
+    exact = {"fold": [f["Omega"] for f in ex["folds"]],
+             "period_doubling": [s["Omega"] for s in ex["stability_changes"]
+                                 if s["kind"].startswith("flip")],
+             "neimark_sacker": [s["Omega"] for s in ex["stability_changes"]
+                                if s["kind"] == "Neimark-Sacker"]}
+    assert br.termination == "bounds", br.termination
+    for kind, values in exact.items():
+        ours = sorted(b.value for b in br.of_kind(kind))
+        assert len(ours) == len(values) == 2, (kind, ours, values)
+        err = np.max(np.abs(np.array(ours) - np.sort(values)) / np.sort(values))
+        print(f"{kind}: ours {np.round(ours, 7)}, exact {np.round(np.sort(values), 7)}, "
+              f"worst relative difference {err:.1e}")
+        assert err < 1e-4
+    # multipliers at the located points: -1, a complex pair on the unit circle (where the
+    # test function is continuous: the lower Neimark–Sacker point sits 1e-6 from grazing,
+    # where the multipliers jump across the circle, and is bracketed, not converged)
+    located = [b for b in br.bifurcations if b.located]
+    print([(b.kind, round(b.value, 7), b.located, b.evaluations) for b in br.bifurcations])
+    assert {b.kind for b in located} == {"fold", "period_doubling", "neimark_sacker"}
+    for b in located:
+        mu = b.multipliers
+        if b.kind == "period_doubling":
+            assert np.min(np.abs(mu + 1)) < 1e-3
+        if b.kind == "neimark_sacker":
+            c = mu[np.abs(mu.imag) > 1e-3]
+            assert np.min(np.abs(np.abs(c) - 1)) < 1e-3
+    # the branch's peak of |Q2| against the exact one
+    q2 = br.dof("x2", "harmonic")
+    assert abs(q2.max() - ex["peak_Q2"]) < 2e-3 * ex["peak_Q2"]
+
+
+def test_period_doubling_branch_switching(nlvib_branch):
+    """At the flip of NLvib 03 the period-2 branch is reached by branch switching; it spans
+    the flip window and rejoins the period-1 branch at the other flip; at a point inside,
+    shooting with n = 2 from a marched state finds the same orbit, and marching from a
+    perturbed state lands on it (it is stable)."""
+    sysm, br = nlvib_branch
+    pd = br.of_kind("period_doubling")
+    pd_hi = max(pd, key=lambda b: b.value)
+    br2 = aj.continuation(sysm, aj.Harmonic(amplitude=0.1, omega=0.8), "omega",
+                          bounds=(0.5, 0.8), start=pd_hi)
+    assert br2.period_multiple == 2 and np.all(br2.ok)
+    assert br2.termination == "rejoined", br2.termination
+    lo = min(b.value for b in pd)
+    assert br2.values.min() < lo + 2e-3 and br2.values.max() <= pd_hi.value + 1e-4
+    i = int(np.argmin(np.abs(br2.values - 0.746)))
+    w = float(br2.values[i])
+    f = aj.Harmonic(amplitude=0.1, omega=w)
+    # shooting with n = 2 from elsewhere: from the orbit two branch points away (from the
+    # linear guess it finds the coexisting non-resonant orbit instead)
+    j = i - 2
+    assert abs(br2.values[j] - w) > 1e-4
+    sh = aj.steady_state(sysm, f, method=aj.Shooting(n=2), guess=br2.states[j])
+    ma = aj.steady_state(sysm, f, method="marching",
+                         guess=np.asarray(br2.states[i]) * (1 + 1e-3), n_max=4)
+    print(f"period-2 branch at Ω = {w:.5f}: |x2| amplitude {br2.amplitude[i]:.6f}, "
+          f"shooting n=2 {float(sh.amplitude):.6f}, marching {float(ma.amplitude):.6f} "
+          f"(period {int(ma.period_multiple)})")
+    for other in (sh, ma):
+        assert int(other.status) == 0
+        assert abs(float(other.amplitude) - br2.amplitude[i]) < 1e-5 * br2.amplitude[i]
+    assert int(ma.period_multiple) == 2 and bool(br2.stable[i]) and bool(sh.stable)
+
+
+def test_bad_input_is_named():
+    system = hardening()
+    f = aj.Harmonic(amplitude=0.05, omega=1.0)
+    cases = [
+        (dict(parameter="nope", bounds=(0.5, 1.5)), "nope"),
+        (dict(bounds=(1.5, 0.5)), "bounds"),
+        (dict(bounds=(1.2, 1.5)), "inside bounds"),
+        (dict(bounds=(-1.0, 1.5)), "omega"),
+        (dict(parameter="contact1.gap", bounds=(-1.0, 1.0)), "gap"),
+        (dict(bounds=(0.5, 1.5), direction="sideways"), "direction"),
+        (dict(bounds=(0.5, 1.5), n=0), "n must"),
+        (dict(bounds=(0.5, 1.5), method="newton"), "PseudoArclength"),
+        (dict(bounds=(0.5, 1.5), start="fold"), "start"),
+    ]
+    for kw, text in cases:
+        kw = dict(kw)
+        p = kw.pop("parameter", "omega")
+        with pytest.raises(ValueError, match=text):
+            aj.continuation(system, f, p, **kw)
+    with pytest.raises(ValueError, match="min_step <= step"):
+        aj.PseudoArclength(step=1.0, max_step=0.1)
+    with pytest.raises(ValueError, match="max_points"):
+        aj.PseudoArclength(max_points=1)

@@ -11,6 +11,7 @@ _jax.config.update("jax_enable_x64", True)
 
 from . import presets  # noqa: E402
 from ._abstract_system import AbstractSystem  # noqa: E402
+from ._attractors import Attractor, AttractorMap, attractors, bifurcation_diagram  # noqa: E402
 from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
 from ._continuation import Bifurcation, Branch, PseudoArclength, continuation  # noqa: E402
 from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
@@ -37,6 +38,7 @@ from ._linear import linear_guess  # noqa: E402
 from ._marching import Marching  # noqa: E402
 from ._method import AbstractSteadyMethod  # noqa: E402
 from ._params import get_param, parameter_names, replace_params  # noqa: E402
+from ._plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
 from ._shooting import Shooting  # noqa: E402
 from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._status import Status, describe  # noqa: E402
@@ -65,7 +67,9 @@ __all__ = [
     "LinearStructure", "cantilever_beam", "shear_building", "structure_from_matrices",
     "structure_from_modes", "AbstractSystem", "StructuralSystem", "AbstractElement", "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
-    "Bifurcation", "Branch", "PseudoArclength", "continuation",
+    "Attractor", "AttractorMap", "attractors", "bifurcation_diagram", "plot_bifurcation_diagram",
+    "Bifurcation", "Branch", "PseudoArclength", "continuation", "plot_branches",
+    "plot_frequency_response",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",

@@ -371,6 +371,178 @@ def cmd_work_precision(args):
     runpy.run_path(script, run_name="__main__")
 
 
+def _parse_bounds(text, flag):
+    try:
+        lo, hi = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise ValueError(f"{flag} expects LO:HI, got {text!r}") from None
+    return lo, hi
+
+
+def cmd_continue(args):
+    """Continuation of a branch (and, with --switch, the period-2n branches born at its
+    period doublings): CSV per branch, JSON summary, PNG."""
+    import json
+    import os
+    import time
+
+    from ._continuation import PseudoArclength, continuation
+    from ._forcing import Harmonic
+    from ._plots import plot_branches
+
+    t0 = time.perf_counter()
+    system, amplitude, title = _load_system(args)
+    sets = _parse_sets(args.set)
+    if sets:
+        from ._params import replace_params
+
+        system = replace_params(system, sets)
+    if args.amplitude is not None:
+        amplitude = args.amplitude
+    lo, hi = _parse_bounds(args.bounds, "--bounds")
+    omega = args.omega
+    if args.parameter == "omega":
+        start = args.start if args.start is not None else (lo if args.direction == "up" else hi)
+        omega = start
+    elif args.start is not None:
+        if args.parameter == "amplitude":
+            amplitude = args.start
+        else:
+            from ._params import replace_params
+
+            system = replace_params(system, {args.parameter: args.start})
+    if omega is None:
+        raise ValueError("--omega is required when continuing in a parameter other than omega")
+    forcing = Harmonic(amplitude=amplitude, omega=omega)
+    method = PseudoArclength(step=args.step, max_step=max(args.step, args.max_step),
+                             max_points=args.max_points)
+    os.makedirs(args.out, exist_ok=True)
+    branches = [continuation(system, forcing, args.parameter, bounds=(lo, hi), method=method,
+                             n=args.n, direction=args.direction, progress=args.progress)]
+    if args.switch:
+        for b in list(branches[0].of_kind("period_doubling")):
+            branches.append(continuation(system, forcing, args.parameter, bounds=(lo, hi),
+                                         method=method, start=b, progress=args.progress))
+    names = []
+    for k, br in enumerate(branches):
+        name = "branch.csv" if k == 0 else f"branch_switched_{k}_period{br.period_multiple}.csv"
+        br.to_csv(os.path.join(args.out, name))
+        names.append(name)
+    plot_branches(branches, os.path.join(args.out, "branches.png"), scale=1.0,
+                  title=f"{title}: continuation in {args.parameter} (F0 = {amplitude:g})")
+    summary = {"scene": args.file or args.scene, "parameter": args.parameter,
+               "bounds": [lo, hi], "amplitude": amplitude, "set": sets,
+               "branches": [dict(br.summary(), csv=n) for br, n in zip(branches, names)],
+               "time_s": time.perf_counter() - t0}
+    with open(os.path.join(args.out, "summary.json"), "w") as fh:
+        json.dump(summary, fh, indent=2)
+    for br in branches:
+        print(f"period-{br.period_multiple} branch: {len(br)} points, {br.termination}; "
+              + ", ".join(f"{b.kind} at {b.value:.6g}" for b in br.bifurcations))
+    print(f"CSV, summary.json and branches.png written to {args.out} "
+          f"({summary['time_s']:.1f} s)")
+
+
+def _load_system(args):
+    """(system, F0, title) from --file (a scene file) or --scene (a preset)."""
+    import os
+
+    if args.file:
+        from ._scene import load_scene
+
+        system, settings = load_scene(args.file)
+        return (system, settings.amplitude,
+                settings.title or os.path.splitext(os.path.basename(args.file))[0])
+    from . import presets
+
+    system, forcing = presets.scene(args.scene)
+    return system, float(forcing.amplitude), args.scene
+
+
+def cmd_attractors(args):
+    """Attractor map at one frequency (--omega W) or a stroboscopic bifurcation diagram
+    over a range (--omega LO:HI:N): JSON summary, CSV per initial state, PNG."""
+    import csv
+    import json
+    import os
+    import time
+
+    import numpy as np
+
+    from ._attractors import attractors, bifurcation_diagram
+    from ._forcing import Harmonic
+    from ._plots import plot_bifurcation_diagram
+
+    t0 = time.perf_counter()
+    system, amplitude, title = _load_system(args)
+    sets = _parse_sets(args.set)
+    if sets:
+        from ._params import replace_params
+
+        system = replace_params(system, sets)
+    if args.amplitude is not None:
+        amplitude = args.amplitude
+    opts = dict(samples=args.samples, n_max=args.n_max, max_periods=args.max_periods,
+                window=args.window, seed=args.seed)
+    os.makedirs(args.out, exist_ok=True)
+    if ":" in args.omega:
+        lo, hi, n = _parse_range(args.omega, "--omega")
+        omegas = np.linspace(lo, hi, n)
+        maps = bifurcation_diagram(system, Harmonic(amplitude=amplitude, omega=lo), omegas,
+                                   progress=args.progress, **opts)
+    else:
+        w = float(args.omega)
+        maps = [attractors(system, Harmonic(amplitude=amplitude, omega=w), **opts)]
+    with open(os.path.join(args.out, "attractors.csv"), "w", newline="") as fh:
+        wr = csv.writer(fh)
+        wr.writerow(["omega", "sample", *[f"y0[{s}]" for s in system.state_names],
+                     "attractor", "periodic", "period_multiple", "amplitude", "rms", "peak",
+                     "spread", "marching_status"])
+        for m in maps:
+            for k in range(m.label.shape[0]):
+                lab = int(m.label[k])
+                a = m.attractors[lab] if lab >= 0 else None
+                wr.writerow([m.omega, k, *m.initial_states[k], lab,
+                             int(a.periodic) if a else "", a.period_multiple if a else "",
+                             m.amplitude[k], m.rms[k], m.peak[k], m.spread[k],
+                             int(m.steady.status[k])])
+    summary = {"scene": args.file or args.scene, "F0": amplitude, "set": sets, **opts,
+               "maps": [m.summary() for m in maps], "time_s": time.perf_counter() - t0}
+    with open(os.path.join(args.out, "summary.json"), "w") as fh:
+        json.dump(summary, fh, indent=2)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if len(maps) > 1:
+        plot_bifurcation_diagram(maps, os.path.join(args.out, "bifurcation_diagram.png"),
+                                 title=f"{title}: stroboscopic bifurcation diagram "
+                                       f"(F0 = {amplitude:g})")
+    else:
+        m = maps[0]
+        fig, ax = plt.subplots(figsize=(6, 5))
+        names = system.state_names
+        for i, a in enumerate(m.attractors):
+            sel = m.label == i
+            kind = f"period-{a.period_multiple}" if a.periodic else "not periodic"
+            ax.plot(m.initial_states[sel, 0], m.initial_states[sel, 1], "o", ms=5,
+                    label=f"{kind}: amplitude {a.amplitude:.4g}, peak {a.peak:.4g} "
+                          f"({100 * a.share:.0f} %)")
+        ax.set(xlabel=f"{names[0]}(0)", ylabel=f"{names[1]}(0)",
+               title=f"{title}: attractors at ω = {m.omega:g} rad/s")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(os.path.join(args.out, "attractors.png"), dpi=110)
+        plt.close(fig)
+    for m in maps:
+        print(f"ω = {m.omega:g}: " + "; ".join(
+            (f"period-{a.period_multiple}" if a.periodic else "not periodic")
+            + f" amplitude {a.amplitude:.4g} ({100 * a.share:.0f} %)" for a in m.attractors))
+    print(f"attractors.csv, summary.json and a figure written to {args.out} "
+          f"({summary['time_s']:.1f} s)")
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="absorber-jax",
                                 description="Impact and friction vibration absorbers in JAX")
@@ -426,6 +598,46 @@ def build_parser():
                     help="also simulate from rest at the peak (or [simulate] omega)")
     sc.add_argument("--progress", action="store_true", help="show a progress bar")
     sc.set_defaults(func=cmd_scene)
+    cn = sub.add_parser("continue", help="continuation of periodic orbits through folds, "
+                        "with bifurcations (CSV, JSON, PNG)")
+    src = cn.add_mutually_exclusive_group()
+    src.add_argument("--scene", default="kelvin_voigt", help="a preset scene")
+    src.add_argument("--file", default=None, help="a scene file (.toml or .json)")
+    cn.add_argument("--parameter", default="omega",
+                    help="omega, amplitude or a system parameter (k1, gap, tmd1.k, ...)")
+    cn.add_argument("--bounds", required=True, help="LO:HI of the parameter")
+    cn.add_argument("--start", type=float, default=None,
+                    help="start value (omega: default the bound the direction leaves)")
+    cn.add_argument("--omega", type=float, default=None,
+                    help="forcing frequency when continuing in another parameter")
+    cn.add_argument("--amplitude", type=float, default=None, help="F0 [N]")
+    cn.add_argument("--direction", default="up", choices=["up", "down"])
+    cn.add_argument("--n", type=int, default=1, help="period multiple")
+    cn.add_argument("--step", type=float, default=0.01)
+    cn.add_argument("--max-step", type=float, default=0.05)
+    cn.add_argument("--max-points", type=int, default=400)
+    cn.add_argument("--switch", action="store_true",
+                    help="also follow the period-2n branches born at period doublings")
+    cn.add_argument("--set", action="append", metavar="name=value")
+    cn.add_argument("--out", default="continuation")
+    cn.add_argument("--progress", action="store_true")
+    cn.set_defaults(func=cmd_continue)
+    at = sub.add_parser("attractors", help="attractor map at one frequency, or a "
+                        "stroboscopic bifurcation diagram over a range (CSV, JSON, PNG)")
+    src = at.add_mutually_exclusive_group()
+    src.add_argument("--scene", default="kelvin_voigt", help="a preset scene")
+    src.add_argument("--file", default=None, help="a scene file (.toml or .json)")
+    at.add_argument("--omega", required=True, help="W [rad/s], or LO:HI:N for a diagram")
+    at.add_argument("--amplitude", type=float, default=None, help="F0 [N]")
+    at.add_argument("--samples", type=int, default=32, help="initial states")
+    at.add_argument("--seed", type=int, default=0)
+    at.add_argument("--n-max", type=int, default=8)
+    at.add_argument("--max-periods", type=int, default=2000)
+    at.add_argument("--window", type=int, default=40, help="periods of statistics")
+    at.add_argument("--set", action="append", metavar="name=value")
+    at.add_argument("--out", default="attractors")
+    at.add_argument("--progress", action="store_true")
+    at.set_defaults(func=cmd_attractors)
     wp = sub.add_parser("work-precision", help="error against run time for every law and solver")
     wp.add_argument("--out", default="work_precision")
     wp.add_argument("--resume", action="store_true",

@@ -55,3 +55,114 @@ def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix=
         fig.savefig(path, dpi=110)
         plt.close(fig)
     return ax
+
+
+BIFURCATION_STYLE = {"fold": ("o", "black", "fold"),
+                     "period_doubling": ("s", "tab:red", "period doubling"),
+                     "neimark_sacker": ("D", "tab:green", "Neimark–Sacker")}
+
+
+def plot_branches(branches, path=None, *, ax=None, dof=None, field="amplitude", title="",
+                  scale=1.0, unit=""):
+    """Frequency–response curves from :func:`continuation`: stable parts solid, unstable
+    parts dashed, one colour per period multiple, bifurcations marked (fold ●, period
+    doubling ■, Neimark–Sacker ◆).  ``dof``: plot ``dof_<field>`` at that degree of freedom
+    (default the system's observable, ``field`` = amplitude, rms or harmonic); ``scale``
+    multiplies the values (1e3 for mm)."""
+    import matplotlib
+
+    if path is not None:
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not isinstance(branches, (list, tuple)):
+        branches = [branches]
+    own = ax is None
+    if own:
+        fig, ax = plt.subplots(figsize=(8, 4.5))
+    colors = plt.get_cmap("tab10")
+    seen = set()
+    for br in branches:
+        x = np.asarray(br.values)
+        y = (np.asarray(getattr(br, field)) if dof is None else br.dof(dof, field)) * scale
+        ok = np.asarray(br.status) == 0
+        st = np.asarray(br.stable).astype(bool)
+        c = colors((br.period_multiple - 1) % 10)
+        # segment (i, i+1) solid when both ends are stable, dashed otherwise; runs of one
+        # style drawn as one line
+        seg = np.array([(ok[i] and ok[i + 1], bool(st[i] and st[i + 1]))
+                        for i in range(len(x) - 1)]).reshape(-1, 2)
+        i = 0
+        while i < len(seg):
+            j = i
+            while j + 1 < len(seg) and tuple(seg[j + 1]) == tuple(seg[i]):
+                j += 1
+            valid, stable = seg[i]
+            if valid:
+                key = (br.period_multiple, bool(stable))
+                ax.plot(x[i:j + 2], y[i:j + 2], "-" if stable else "--", color=c,
+                        lw=1.4 if stable else 1.0,
+                        label=None if key in seen else
+                        f"period-{br.period_multiple} {'stable' if stable else 'unstable'}")
+                seen.add(key)
+            i = j + 1
+        for b in br.bifurcations:
+            mk, col, name = BIFURCATION_STYLE[b.kind]
+            yb = b.amplitude if (dof is None and field == "amplitude") else np.interp(
+                b.value, x[b.index:b.index + 2] if x[b.index] < x[b.index + 1]
+                else x[b.index:b.index + 2][::-1],
+                y[b.index:b.index + 2] if x[b.index] < x[b.index + 1]
+                else y[b.index:b.index + 2][::-1])
+            yb = yb * (scale if (dof is None and field == "amplitude") else 1.0)
+            ax.plot([b.value], [yb], mk, color=col, ms=6, mfc="white" if not b.located else col,
+                    label=None if b.kind in seen else name)
+            seen.add(b.kind)
+        if (~ok).any():
+            ax.plot(x[~ok], np.zeros((~ok).sum()), "x", color="red")
+    ax.set(xlabel=branches[0].parameter + (" [rad/s]" if branches[0].parameter == "omega"
+                                           else ""),
+           ylabel=(f"{field}" + (f" of {dof}" if dof else "") + (f" [{unit}]" if unit else "")),
+           title=title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    if own and path is not None:
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return ax
+
+
+def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=1.0, unit=""):
+    """Stroboscopic bifurcation diagram from :func:`bifurcation_diagram`: the observable at
+    ``t = kT`` over the statistics window, for every initial state, against ``ω``; periodic
+    responses in colour by period multiple (a period-n orbit shows n points), the others
+    grey."""
+    import matplotlib
+
+    if path is not None:
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    own = ax is None
+    if own:
+        fig, ax = plt.subplots(figsize=(8, 4.5))
+    colors = plt.get_cmap("tab10")
+    seen = set()
+    for m in maps:
+        for k in range(m.section.shape[0]):
+            ok = int(m.steady.status[k]) == 0
+            n = int(m.steady.period_multiple[k]) if ok else 0
+            c = colors((n - 1) % 10) if ok else "0.6"
+            lab = (f"period-{n}" if ok else "not periodic")
+            ax.plot(np.full(m.section.shape[1], m.omega), m.section[k] * scale, ".", ms=1.5,
+                    color=c, label=None if lab in seen else lab)
+            seen.add(lab)
+    ax.set(xlabel="ω [rad/s]", ylabel="observable at t = kT" + (f" [{unit}]" if unit else ""),
+           title=title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, markerscale=4)
+    if own and path is not None:
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return ax

@@ -1,0 +1,266 @@
+"""Attractor maps: many initial conditions marched at once, the distinct responses they
+settle on, and the statistics a designer needs for each, periodic or not.
+
+At one forcing, ``K`` initial states (sampled in a box around rest, or given) are marched in
+one vmapped call (:class:`Marching`: the Poincaré samples ``t = kT`` until they repeat with
+a period ``n <= n_max``).  Then every lane is integrated over a further window of
+``window`` periods from where it ended, sampled ``SAMPLES`` times per period: the largest
+``|observable|`` (``peak``), its RMS and half peak-to-peak over the window, and the spread of
+the Poincaré samples (their largest distance from their mean, on the scaled state): zero
+for a periodic response, finite for a quasi-periodic or chaotic one.  Lanes are grouped into
+attractors by period multiple and window statistics; each attractor carries its share of the
+sampled initial states.  So a design has a number (the peak over the window) even where no
+periodic orbit is stable.
+
+Orbits that differ only by a symmetry (a mirrored impacting orbit in a symmetric clearance)
+or by the free position of a floating absorber are one attractor here: they have the same
+statistics.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._abstract_system import AbstractSystem
+from ._checks import check_scalar, require_x64
+from ._flow import _flow, make_config, state_scale
+from ._forcing import Harmonic
+from ._marching import Marching
+from ._orbit import SteadyState, _parabolic_peak
+from ._status import Status
+from ._steady import solve_point
+
+# samples per forcing period of the statistics window
+SAMPLES = 64
+# stroboscopic samples of the observable repeating to this fraction of its amplitude make a
+# period
+PERIOD_TOL = 1e-3
+
+
+class Attractor(eqx.Module):
+    """One response found by :func:`attractors`.
+
+    ``periodic``: a period-``period_multiple`` orbit (else quasi-periodic or chaotic, or not
+    settled within the marching budget); ``share``: fraction of the sampled initial states
+    that settled on it; ``amplitude``, ``rms``, ``peak``: the observable's half
+    peak-to-peak, RMS and largest ``|value|`` over the window; ``spread``: the Poincaré
+    samples' largest distance from their mean (scaled state; ~0 for an orbit);
+    ``converged``: marching's periodicity test passed for one of its members (not for a
+    floating absorber's neutral family, whose position drifts slowly: its ``stable`` is then
+    False, not proven); ``stable``: the Floquet label of that member; ``multipliers``;
+    ``state``: public state on it at ``t = 0 mod T`` (one member); ``members``: indices of
+    its initial states."""
+
+    periodic: bool = eqx.field(static=True)
+    period_multiple: int = eqx.field(static=True)
+    converged: bool = eqx.field(static=True)
+    share: float
+    amplitude: float
+    rms: float
+    peak: float
+    spread: float
+    stable: bool = eqx.field(static=True)
+    multipliers: np.ndarray
+    state: np.ndarray
+    members: np.ndarray
+
+    def summary(self):
+        return dict(periodic=self.periodic, period_multiple=self.period_multiple,
+                    converged=self.converged,
+                    share=float(self.share), amplitude=float(self.amplitude),
+                    rms=float(self.rms), peak=float(self.peak), spread=float(self.spread),
+                    stable=self.stable, members=int(len(self.members)))
+
+
+class AttractorMap(eqx.Module):
+    """The responses reached from ``initial_states`` at one forcing (:func:`attractors`).
+
+    ``steady``: the marching result per initial state (batched :class:`SteadyState`; status
+    ``NOT_PERIODIC`` where the response never repeats); ``peak``, ``rms``, ``amplitude``,
+    ``spread``: window statistics per initial state; ``section``: the observable at
+    ``t = kT`` over the window (``(K, window)``: the stroboscopic samples a bifurcation
+    diagram plots); ``label``: the attractor index of each
+    initial state; ``attractors``: the distinct :class:`Attractor` s, most frequent first."""
+
+    omega: float
+    amplitude_F0: float
+    initial_states: np.ndarray
+    steady: SteadyState
+    peak: np.ndarray
+    rms: np.ndarray
+    amplitude: np.ndarray
+    spread: np.ndarray
+    section: np.ndarray
+    label: np.ndarray
+    attractors: tuple
+
+    def summary(self):
+        return dict(omega=float(self.omega), F0=float(self.amplitude_F0),
+                    samples=int(self.label.shape[0]),
+                    attractors=[a.summary() for a in self.attractors])
+
+
+@eqx.filter_jit
+def _march_all(system, forcing, x0s, cfg, method, window):
+    scale = state_scale(system, forcing)
+    T = 2 * jnp.pi / forcing.omega
+    ts = jnp.arange(window * SAMPLES) * (T / SAMPLES)
+
+    def lane(x0):
+        ss = solve_point(system, forcing, method, cfg, guess=x0)
+        x = system.to_internal(ss.state) / scale
+        ys, st = _flow((system, forcing), x, window * T, ts, cfg=cfg.over_periods(window))
+        s = ys * scale
+        obs = jax.vmap(system.observable)(s)
+        sec = ys[::SAMPLES]
+        spread = jnp.max(jnp.linalg.norm(sec - jnp.mean(sec, axis=0), axis=1))
+        hi = _parabolic_peak(obs, jnp.argmax(obs))
+        lo = _parabolic_peak(obs, jnp.argmin(obs))
+        # the period seen in the window: the smallest n whose stroboscopic samples of the
+        # observable repeat to PERIOD_TOL of its amplitude (a floating absorber's orbit
+        # family settles too slowly for marching's tail test, but repeats here)
+        osec = obs[::SAMPLES]
+        ns = jnp.arange(1, method.n_max + 1)
+        d = jnp.stack([jnp.max(jnp.abs(osec[n:] - osec[:-n]))
+                       for n in range(1, method.n_max + 1)])
+        rep = d <= PERIOD_TOL * 0.5 * (hi - lo)
+        period = jnp.where(jnp.any(rep), ns[jnp.argmax(rep)], 0)
+        ok = (st == Status.SUCCESS) & jnp.all(jnp.isfinite(ys))
+        nan = jnp.nan
+        stats = (jnp.where(ok, jnp.maximum(hi, -lo), nan),
+                 jnp.where(ok, jnp.sqrt(jnp.mean(obs**2)), nan),
+                 jnp.where(ok, 0.5 * (hi - lo), nan),
+                 jnp.where(ok, spread, nan),
+                 jnp.where(ok, obs[::SAMPLES], nan),
+                 jnp.where(ok, period, -1))
+        return ss, stats
+
+    return jax.vmap(lane)(x0s)
+
+
+def _sample_states(system, forcing, samples, spread, seed):
+    scale = np.asarray(state_scale(system, forcing))
+    rest = np.asarray(system.rest_state())
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-1.0, 1.0, size=(samples, scale.size))
+    x_int = rest + spread * scale * u
+    return np.stack([np.asarray(system.to_public(jnp.asarray(x))) for x in x_int])
+
+
+def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None,
+               samples=32, spread=3.0, seed=0, n_max=8, max_periods=2000, tol=1e-6,
+               window=40, rel_tol=2e-3, solver=None, rtol=1e-9, atol=1e-9,
+               max_steps=200_000) -> AttractorMap:
+    """The distinct responses of ``system`` under ``forcing`` reached from many initial
+    states (see the module docstring).
+
+    **Arguments**
+
+    - ``initial_states``: ``(K, num_states)`` public states; default ``samples`` states
+      uniform in a box of ``±spread`` state scales around rest (``seed``).
+    - ``n_max``, ``max_periods``, ``tol``: the marching (period multiples recognised, budget
+      in forcing periods, recurrence tolerance on the scaled state).
+    - ``window``: periods of the statistics window after marching.
+    - ``rel_tol``: two lanes are one attractor when their period multiples agree and their
+      window amplitude and RMS agree to ``rel_tol`` (non-periodic: 5 %).
+    - ``solver``, ``rtol``, ``atol``, ``max_steps``: the integrator.
+
+    **Returns** an :class:`AttractorMap`.
+    """
+    require_x64("attractors")
+    if not isinstance(system, AbstractSystem):
+        raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
+                         f"StructuralSystem, got {type(system).__name__}")
+    if not isinstance(forcing, Harmonic):
+        raise ValueError("attractors needs a periodic forcing: forcing must be a Harmonic, "
+                         f"got {type(forcing).__name__}")
+    for name, v, lo in (("samples", samples, 1), ("window", window, 2)):
+        if not isinstance(v, int) or v < lo:
+            raise ValueError(f"attractors: {name} must be an integer >= {lo}, got {v!r}")
+    check_scalar("attractors", "spread", spread, lo=0.0, lo_open=True)
+    check_scalar("attractors", "rel_tol", rel_tol, lo=0.0, hi=1.0, lo_open=True)
+    method = Marching(n_max=n_max, max_periods=max_periods, tol=tol)
+    if initial_states is None:
+        y0 = _sample_states(system, forcing, samples, float(spread), seed)
+    else:
+        y0 = np.atleast_2d(np.asarray(initial_states, dtype=float))
+        if y0.ndim != 2 or y0.shape[1] != system.num_states:
+            raise ValueError(f"initial_states must have shape (K, {system.num_states}) "
+                             f"({', '.join(system.state_names)}), got {y0.shape}")
+        if not np.all(np.isfinite(y0)):
+            raise ValueError("initial_states must be finite")
+    cfg = make_config(system, forcing, solver, rtol, atol, max_steps)
+    x0s = jnp.stack([system.to_internal(jnp.asarray(y)) for y in y0])
+    ss, (peak, rms, amp, spr, sec, per) = _march_all(system, forcing, x0s, cfg, method,
+                                                     int(window))
+    ss = jax.tree_util.tree_map(np.asarray, ss)
+    peak, rms, amp, spr, sec, per = (np.asarray(a) for a in (peak, rms, amp, spr, sec, per))
+    label, groups = _group(per, amp, rms, rel_tol)
+    found = []
+    K = y0.shape[0]
+    for g in groups:
+        # a representative: one whose marching converged, if any
+        conv = [j for j in g if int(ss.status[j]) == Status.SUCCESS]
+        i = conv[0] if conv else g[0]
+        periodic = int(per[i]) > 0
+        found.append(Attractor(
+            periodic=periodic, period_multiple=int(per[i]), converged=bool(conv),
+            share=len(g) / K, amplitude=float(np.median(amp[g])), rms=float(np.median(rms[g])),
+            peak=float(np.max(peak[g])), spread=float(np.max(spr[g])),
+            stable=bool(ss.stable[i]),
+            multipliers=np.asarray(ss.multipliers[i]), state=np.asarray(ss.state[i]),
+            members=np.asarray(g)))
+    return AttractorMap(omega=float(forcing.omega), amplitude_F0=float(forcing.amplitude),
+                        initial_states=y0, steady=ss, peak=peak, rms=rms, amplitude=amp,
+                        spread=spr, section=sec, label=label, attractors=tuple(found))
+
+
+def _group(per, amp, rms, rel_tol):
+    """Lanes grouped by the period seen in the window (0: not periodic) and window
+    amplitude/RMS; groups sorted by size.  Lanes whose window failed get label -1."""
+    K = amp.shape[0]
+    label = np.full(K, -1)
+    groups = []
+    reps = []
+    for i in range(K):
+        if not (np.isfinite(amp[i]) and np.isfinite(rms[i])):
+            continue
+        n = int(per[i])
+        periodic = n > 0
+        tol = rel_tol if periodic else 0.05
+        for gi, (p, nn, a, r) in enumerate(reps):
+            if p == periodic and nn == n and abs(amp[i] - a) <= tol * max(a, 1e-300) \
+                    and abs(rms[i] - r) <= tol * max(r, 1e-300):
+                groups[gi].append(i)
+                break
+        else:
+            reps.append((periodic, n, amp[i], rms[i]))
+            groups.append([i])
+    order = sorted(range(len(groups)), key=lambda g: -len(groups[g]))
+    groups = [groups[g] for g in order]
+    for gi, g in enumerate(groups):
+        label[g] = gi
+    return label, groups
+
+
+def bifurcation_diagram(system, forcing, omegas, *, progress=False, **options):
+    """Stroboscopic bifurcation diagram: :func:`attractors` at every ``ω`` in ``omegas``
+    (same initial states at each, one compilation).  Returns the list of
+    :class:`AttractorMap` s; plot with :func:`absorber_jax.plot_bifurcation_diagram`."""
+    from tqdm.auto import tqdm
+
+    om = np.asarray(omegas, dtype=float)
+    if om.ndim != 1 or om.size < 1 or not np.all(np.isfinite(om)) or np.any(om <= 0):
+        raise ValueError(f"omegas must be a 1-D array of frequencies > 0 [rad/s], got {omegas!r}")
+    if options.get("initial_states") is None:
+        options["initial_states"] = _sample_states(
+            system, forcing, options.pop("samples", 32), float(options.pop("spread", 3.0)),
+            options.pop("seed", 0))
+    out = []
+    for w in tqdm(om, desc="attractors", disable=not progress):
+        out.append(attractors(system, Harmonic(amplitude=forcing.amplitude, omega=float(w)),
+                              **options))
+    return out

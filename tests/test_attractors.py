@@ -1,0 +1,85 @@
+"""Attractor maps (issue 12): many initial states marched at once, the coexisting responses
+with their shares and statistics, non-periodic responses flagged and measured; against
+event-exact and exact piecewise-linear references."""
+
+import numpy as np
+import pytest
+import reference_nlvib03 as ref03
+import references as R
+from test_structural import nlvib03
+
+import absorber_jax as aj
+
+
+def test_table1_at_55_finds_the_period_5_orbit_and_the_floating_period_1_orbit():
+    """Table 1 at 55 rad/s: the attractor map finds both coexisting responses: the
+    period-5 impacting orbit (x1 amplitude against an event-exact march, 1e-3) and the
+    floating period-1 orbit (the primary alone, closed form, 1e-5), with shares adding to 1."""
+    system, forcing = aj.presets.impact("kelvin_voigt", omega=55.0)
+    m = aj.attractors(system, forcing, samples=16, n_max=6, max_periods=1200)
+    found = {a.period_multiple: a for a in m.attractors}
+    print([a.summary() for a in m.attractors])
+    assert set(found) == {1, 5}
+    assert abs(sum(a.share for a in m.attractors) - 1.0) < 1e-12
+    assert np.all(m.label >= 0)
+    # period 5: event-exact (nonsmooth) march from rest, the last 5 periods of 400
+    T = 2 * np.pi / 55.0
+    tt = np.linspace(395 * T, 400 * T, 20001)
+    x1, _ = R.impact_kelvin_voigt(1.0, 1e3, 0.1, 0.4, 1e-3, 400.0, 20.0, 2.0, 55.0,
+                                  np.concatenate([[0.0], tt]))
+    amp5 = 0.5 * np.ptp(x1[1:])
+    p5, p1 = found[5], found[1]
+    assert abs(p5.amplitude - amp5) < 1e-3 * amp5
+    assert p5.periodic and p5.converged and p5.stable
+    # its stroboscopic samples take 5 distinct values, repeating
+    sec = m.section[p5.members[0]]
+    assert np.max(np.abs(sec[5:] - sec[:-5])) < 1e-6 * p5.amplitude
+    assert np.min(np.abs(sec[1:5] - sec[0])) > 1e-2 * p5.amplitude
+    # period 1: the absorber floats, the primary moves alone
+    lin = 2.0 / abs(1e3 - 55.0**2 + 5.5j)
+    assert abs(p1.amplitude - lin) < 1e-5 * lin and p1.periodic
+    assert p5.peak >= p5.amplitude * (1 - 1e-9) and p1.peak >= p1.amplitude * (1 - 1e-9)
+
+
+def test_quasi_periodic_response_is_flagged_and_measured():
+    """NLvib 03 at Ω = 0.6, inside the Neimark–Sacker window: no periodic orbit is stable,
+    the response is quasi-periodic.  It is flagged (not periodic, status NOT_PERIODIC, a
+    wide Poincaré section) and its stroboscopic statistics equal those of the exact
+    piecewise-linear flow iterated from the same initial state (1000 periods after 400)."""
+    sysm, W = nlvib03(), 0.6
+    m = aj.attractors(sysm, aj.Harmonic(amplitude=0.1, omega=W), samples=2, n_max=8,
+                      max_periods=400, window=1000)
+    assert len(m.attractors) == 1
+    a = m.attractors[0]
+    assert not a.periodic and a.share == 1.0 and a.spread > 0.1
+    assert np.all(np.asarray(m.steady.status) == aj.Status.NOT_PERIODIC)
+    for k in range(2):
+        x, sec = np.asarray(m.initial_states[k]), []
+        for _ in range(1400):
+            x = ref03.period_map(x, W)
+            sec.append(x[1])
+        ref = np.array(sec[400:])
+        ours = m.section[k]
+        span = np.ptp(ref)
+        print(f"lane {k}: RMS {np.sqrt(np.mean(ours**2)):.5f} vs {np.sqrt(np.mean(ref**2)):.5f}, "
+              f"range [{ours.min():.4f}, {ours.max():.4f}] vs [{ref.min():.4f}, {ref.max():.4f}]")
+        assert abs(np.sqrt(np.mean(ours**2)) - np.sqrt(np.mean(ref**2))) < 1e-2 * span
+        assert abs(ours.mean() - ref.mean()) < 1e-2 * span
+        assert abs(ours.min() - ref.min()) < 4e-2 * span
+        assert abs(ours.max() - ref.max()) < 4e-2 * span
+    # the designer's number: the largest |q2| over the window, finite and above the RMS
+    assert np.all(np.isfinite(m.peak)) and np.all(m.peak > m.rms)
+
+
+def test_bad_input_is_named():
+    system, forcing = aj.presets.impact("kelvin_voigt", omega=55.0)
+    with pytest.raises(ValueError, match="samples"):
+        aj.attractors(system, forcing, samples=0)
+    with pytest.raises(ValueError, match="initial_states"):
+        aj.attractors(system, forcing, initial_states=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="spread"):
+        aj.attractors(system, forcing, spread=-1.0)
+    with pytest.raises(ValueError, match="Marching.n_max"):
+        aj.attractors(system, forcing, n_max=0)
+    with pytest.raises(ValueError, match="omegas"):
+        aj.bifurcation_diagram(system, forcing, [-1.0])

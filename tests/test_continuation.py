@@ -214,3 +214,53 @@ def test_bad_input_is_named():
         aj.PseudoArclength(step=1.0, max_step=0.1)
     with pytest.raises(ValueError, match="max_points"):
         aj.PseudoArclength(max_points=1)
+
+
+def test_cli_continue_and_attractors_inside_the_hysteresis(tmp_path, capsys):
+    """The CLI on a scene file: `continue` writes the branch (CSV rows = points, JSON with the
+    two folds, PNG); `attractors` at ω = 1.15, inside the hysteresis window, finds the two
+    stable orbits, whose amplitudes are the stable branch points' there (steady_state from
+    the branch, 1e-5)."""
+    import json
+
+    from absorber_jax._cli import main
+
+    scene = {"structure": {"type": "matrices", "mass": [[1.0]], "stiffness": [[1.0]],
+                           "damping": [[HARD["c"]]]},
+             "elements": [{"type": "contact", "dof": "x1", "gap": HARD["g"],
+                           "contact": {"law": "kelvin_voigt", "stiffness": HARD["k_c"],
+                                       "damping": 0.0}}],
+             "load": {"dof": "x1", "amplitude": HARD["F0"]}}
+    path = tmp_path / "hard.json"
+    path.write_text(json.dumps(scene))
+    out = tmp_path / "cont"
+    assert main(["continue", "--file", str(path), "--bounds", "0.8:1.6", "--out",
+                 str(out), "--step", "0.05", "--max-step", "0.2"]) == 0
+    summ = json.loads((out / "summary.json").read_text())
+    br = summ["branches"][0]
+    assert [b["kind"] for b in br["bifurcations"]] == ["fold", "fold"]
+    rows = (out / "branch.csv").read_text().strip().splitlines()
+    assert len(rows) == br["points"] + 1 and (out / "branches.png").stat().st_size > 0
+    lo, hi = sorted(b["value"] for b in br["bifurcations"])
+    assert lo < 1.15 < hi
+    out2 = tmp_path / "att"
+    assert main(["attractors", "--file", str(path), "--omega", "1.15", "--samples", "8",
+                 "--max-periods", "800", "--out", str(out2)]) == 0
+    maps = json.loads((out2 / "summary.json").read_text())["maps"]
+    amps = sorted(a["amplitude"] for a in maps[0]["attractors"] if a["periodic"])
+    assert len(amps) == 2 and (out2 / "attractors.png").stat().st_size > 0
+    # the same two orbits by shooting, seeded from the stable branch points nearest 1.15
+    system = hardening()
+    f = aj.Harmonic(amplitude=HARD["F0"], omega=1.15)
+    bra = aj.continuation(system, aj.Harmonic(amplitude=HARD["F0"], omega=0.8), "omega",
+                          bounds=(0.8, 1.6),
+                          method=aj.PseudoArclength(step=0.05, max_step=0.2))
+    ref = []
+    for part in (bra.values[:bra.of_kind("fold")[0].index + 1],):
+        i = int(np.argmin(np.abs(part - 1.15)))
+        ref.append(float(aj.steady_state(system, f, guess=bra.states[i]).amplitude))
+    k = bra.of_kind("fold")[1].index + 1
+    i = k + int(np.argmin(np.abs(bra.values[k:] - 1.15)))
+    ref.append(float(aj.steady_state(system, f, guess=bra.states[i]).amplitude))
+    np.testing.assert_allclose(amps, sorted(ref), rtol=1e-5)
+    assert main(["attractors", "--file", str(path), "--omega", "x", "--out", str(out2)]) == 2

@@ -4,12 +4,15 @@ import json
 import os
 
 import numpy as np
+import pytest
 
 from absorber_jax._cli import main
 
 FIGS = [2, 4, 6, 7, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20]
 
 
+# slow: CI's first step runs the full reproduction; this quick one adds the golden check
+@pytest.mark.slow
 def test_reproduce_paper_quick(tmp_path):
     out = tmp_path / "figs"
     assert main(["reproduce-paper", "--out", str(out), "--quick"]) == 0

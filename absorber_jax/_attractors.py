@@ -31,7 +31,7 @@ from ._forcing import Harmonic
 from ._marching import Marching
 from ._orbit import SteadyState, _parabolic_peak
 from ._status import Status
-from ._steady import solve_point
+from ._steady import check_system_and_forcing, solve_point
 
 # samples per forcing period of the statistics window
 SAMPLES = 64
@@ -171,12 +171,7 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     **Returns** an :class:`AttractorMap`.
     """
     require_x64("attractors")
-    if not isinstance(system, AbstractSystem):
-        raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
-                         f"StructuralSystem, got {type(system).__name__}")
-    if not isinstance(forcing, Harmonic):
-        raise ValueError("attractors needs a periodic forcing: forcing must be a Harmonic, "
-                         f"got {type(forcing).__name__}")
+    check_system_and_forcing(system, forcing, "attractors")
     for name, v, lo in (("samples", samples, 1), ("window", window, 2)):
         if not isinstance(v, int) or v < lo:
             raise ValueError(f"attractors: {name} must be an integer >= {lo}, got {v!r}")

@@ -391,14 +391,7 @@ def cmd_continue(args):
     from ._plots import plot_branches
 
     t0 = time.perf_counter()
-    system, amplitude, title = _load_system(args)
-    sets = _parse_sets(args.set)
-    if sets:
-        from ._params import replace_params
-
-        system = replace_params(system, sets)
-    if args.amplitude is not None:
-        amplitude = args.amplitude
+    system, amplitude, title, sets = _load_system(args)
     lo, hi = _parse_bounds(args.bounds, "--bounds")
     omega = args.omega
     if args.parameter == "omega":
@@ -444,19 +437,29 @@ def cmd_continue(args):
 
 
 def _load_system(args):
-    """(system, F0, title) from --file (a scene file) or --scene (a preset)."""
+    """(system, F0, title, sets) from --file (a scene file) or --scene (a preset), with the
+    --set replacements and --amplitude applied."""
     import os
 
     if args.file:
         from ._scene import load_scene
 
         system, settings = load_scene(args.file)
-        return (system, settings.amplitude,
-                settings.title or os.path.splitext(os.path.basename(args.file))[0])
-    from . import presets
+        amplitude = settings.amplitude
+        title = settings.title or os.path.splitext(os.path.basename(args.file))[0]
+    else:
+        from . import presets
 
-    system, forcing = presets.scene(args.scene)
-    return system, float(forcing.amplitude), args.scene
+        system, forcing = presets.scene(args.scene)
+        amplitude, title = float(forcing.amplitude), args.scene
+    sets = _parse_sets(args.set)
+    if sets:
+        from ._params import replace_params
+
+        system = replace_params(system, sets)
+    if args.amplitude is not None:
+        amplitude = args.amplitude
+    return system, amplitude, title, sets
 
 
 def cmd_attractors(args):
@@ -474,14 +477,7 @@ def cmd_attractors(args):
     from ._plots import plot_bifurcation_diagram
 
     t0 = time.perf_counter()
-    system, amplitude, title = _load_system(args)
-    sets = _parse_sets(args.set)
-    if sets:
-        from ._params import replace_params
-
-        system = replace_params(system, sets)
-    if args.amplitude is not None:
-        amplitude = args.amplitude
+    system, amplitude, title, sets = _load_system(args)
     opts = dict(samples=args.samples, n_max=args.n_max, max_periods=args.max_periods,
                 window=args.window, seed=args.seed)
     os.makedirs(args.out, exist_ok=True)
@@ -543,6 +539,15 @@ def cmd_attractors(args):
           f"({summary['time_s']:.1f} s)")
 
 
+def _add_source(parser):
+    """--scene | --file, --set, --amplitude: what :func:`_load_system` reads."""
+    src = parser.add_mutually_exclusive_group()
+    src.add_argument("--scene", default="kelvin_voigt", help="a preset scene")
+    src.add_argument("--file", default=None, help="a scene file (.toml or .json)")
+    parser.add_argument("--set", action="append", metavar="name=value")
+    parser.add_argument("--amplitude", type=float, default=None, help="F0 [N]")
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="absorber-jax",
                                 description="Impact and friction vibration absorbers in JAX")
@@ -600,9 +605,7 @@ def build_parser():
     sc.set_defaults(func=cmd_scene)
     cn = sub.add_parser("continue", help="continuation of periodic orbits through folds, "
                         "with bifurcations (CSV, JSON, PNG)")
-    src = cn.add_mutually_exclusive_group()
-    src.add_argument("--scene", default="kelvin_voigt", help="a preset scene")
-    src.add_argument("--file", default=None, help="a scene file (.toml or .json)")
+    _add_source(cn)
     cn.add_argument("--parameter", default="omega",
                     help="omega, amplitude or a system parameter (k1, gap, tmd1.k, ...)")
     cn.add_argument("--bounds", required=True, help="LO:HI of the parameter")
@@ -610,7 +613,6 @@ def build_parser():
                     help="start value (omega: default the bound the direction leaves)")
     cn.add_argument("--omega", type=float, default=None,
                     help="forcing frequency when continuing in another parameter")
-    cn.add_argument("--amplitude", type=float, default=None, help="F0 [N]")
     cn.add_argument("--direction", default="up", choices=["up", "down"])
     cn.add_argument("--n", type=int, default=1, help="period multiple")
     cn.add_argument("--step", type=float, default=0.01)
@@ -618,23 +620,18 @@ def build_parser():
     cn.add_argument("--max-points", type=int, default=400)
     cn.add_argument("--switch", action="store_true",
                     help="also follow the period-2n branches born at period doublings")
-    cn.add_argument("--set", action="append", metavar="name=value")
     cn.add_argument("--out", default="continuation")
     cn.add_argument("--progress", action="store_true")
     cn.set_defaults(func=cmd_continue)
     at = sub.add_parser("attractors", help="attractor map at one frequency, or a "
                         "stroboscopic bifurcation diagram over a range (CSV, JSON, PNG)")
-    src = at.add_mutually_exclusive_group()
-    src.add_argument("--scene", default="kelvin_voigt", help="a preset scene")
-    src.add_argument("--file", default=None, help="a scene file (.toml or .json)")
+    _add_source(at)
     at.add_argument("--omega", required=True, help="W [rad/s], or LO:HI:N for a diagram")
-    at.add_argument("--amplitude", type=float, default=None, help="F0 [N]")
     at.add_argument("--samples", type=int, default=32, help="initial states")
     at.add_argument("--seed", type=int, default=0)
     at.add_argument("--n-max", type=int, default=8)
     at.add_argument("--max-periods", type=int, default=2000)
     at.add_argument("--window", type=int, default=40, help="periods of statistics")
-    at.add_argument("--set", action="append", metavar="name=value")
     at.add_argument("--out", default="attractors")
     at.add_argument("--progress", action="store_true")
     at.set_defaults(func=cmd_attractors)

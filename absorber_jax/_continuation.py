@@ -49,11 +49,11 @@ from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, require_x64
 from ._flow import _Config, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic
-from ._orbit import SteadyState, _finish
+from ._orbit import SteadyResults, SteadyState, _finish, read_through
 from ._params import replace_params, resolve
 from ._shooting import Shooting
 from ._status import Status, describe
-from ._steady import steady_state
+from ._steady import check_system_and_forcing, steady_state
 
 FORCING_PARAMETERS = ("omega", "amplitude")
 KINDS = ("fold", "period_doubling", "neimark_sacker")
@@ -125,7 +125,7 @@ class Bifurcation(eqx.Module):
                     multipliers=[[float(m.real), float(m.imag)] for m in self.multipliers])
 
 
-class Branch(eqx.Module):
+class Branch(SteadyResults, eqx.Module):
     """A branch of period-``n`` orbits from :func:`continuation`.
 
     ``values``: the parameter along the branch (in the order followed: it turns back at
@@ -144,26 +144,8 @@ class Branch(eqx.Module):
     termination: str = eqx.field(static=True)
     dof_names: tuple = eqx.field(static=True, default=())
 
-    @property
-    def states(self):
-        return self.steady.state
-
-    @property
-    def multipliers(self):
-        return self.steady.multipliers
-
-    @property
-    def ok(self):
-        return self.status == Status.SUCCESS
-
     def __len__(self):
         return int(np.asarray(self.values).shape[0])
-
-    def dof(self, name, field="amplitude"):
-        """``dof_<field>`` (amplitude, rms or harmonic) at the degree of freedom ``name``."""
-        if name not in self.dof_names:
-            raise ValueError(f"dof must be one of {list(self.dof_names)}, got {name!r}")
-        return np.asarray(getattr(self.steady, "dof_" + field))[..., self.dof_names.index(name)]
 
     def of_kind(self, kind):
         """The bifurcations of one kind."""
@@ -205,10 +187,9 @@ class Branch(eqx.Module):
             json.dump(self.summary(), fh, indent=2)
 
 
-for _name in (f.name for f in dataclasses.fields(SteadyState)
-              if f.name not in ("state", "multipliers", "period_multiple")):
-    setattr(Branch, _name, property(lambda self, n=_name: getattr(self.steady, n),
-                                    doc=f"``SteadyState.{_name}`` per branch point."))
+read_through(Branch, [f.name for f in dataclasses.fields(SteadyState)
+                      if f.name not in ("state", "multipliers", "period_multiple")],
+             "branch point")
 
 
 # --------------------------------------------------------------------------- the problem
@@ -496,12 +477,7 @@ def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "om
     ```
     """
     require_x64("continuation")
-    if not isinstance(system, AbstractSystem):
-        raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
-                         f"StructuralSystem, got {type(system).__name__}")
-    if not isinstance(forcing, Harmonic):
-        raise ValueError("continuation needs a periodic forcing: forcing must be a Harmonic, "
-                         f"got {type(forcing).__name__}")
+    check_system_and_forcing(system, forcing, "continuation")
     method = PseudoArclength() if method is None else method
     if not isinstance(method, PseudoArclength):
         raise ValueError(f"method must be a PseudoArclength(...), got {method!r}")

@@ -17,6 +17,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import lineax as lx
+import numpy as np
 
 from ._flow import _flat_inputs, _flow, accurate_tangents, period_map, state_scale
 from ._status import Status
@@ -53,6 +54,37 @@ class SteadyState(eqx.Module):
     @property
     def ok(self):
         return self.status == Status.SUCCESS
+
+
+class SteadyResults:
+    """What results holding a batched :class:`SteadyState` as ``steady`` share (sweeps,
+    continuation branches): the orbit states, multipliers, success flags and the
+    per-degree-of-freedom fields by name (``dof_names``)."""
+
+    @property
+    def states(self):
+        return self.steady.state
+
+    @property
+    def multipliers(self):
+        return self.steady.multipliers
+
+    @property
+    def ok(self):
+        return self.status == Status.SUCCESS
+
+    def dof(self, name, field="amplitude"):
+        """``dof_<field>`` (amplitude, rms or harmonic) at the degree of freedom ``name``."""
+        if name not in self.dof_names:
+            raise ValueError(f"dof must be one of {list(self.dof_names)}, got {name!r}")
+        return np.asarray(getattr(self.steady, "dof_" + field))[..., self.dof_names.index(name)]
+
+
+def read_through(cls, names, where):
+    """Give ``cls`` a read-only property per :class:`SteadyState` field in ``names``."""
+    for name in names:
+        setattr(cls, name, property(lambda self, n=name: getattr(self.steady, n),
+                                    doc=f"``SteadyState.{name}`` per {where}."))
 
 
 def _parabolic_peak(y, i):

@@ -5,22 +5,35 @@ from __future__ import annotations
 import numpy as np
 
 
-def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix=""):
-    """Primary amplitude against frequency for one or several :class:`FrequencyResponse`.
-
-    Filled markers: stable orbits; open markers: unstable; colour by period multiple
-    (period-1, and subharmonics n > 1); red crosses on the axis: failed points."""
+def _axes(path, ax):
+    """(pyplot, ax, own): a new figure when ``ax`` is None (Agg when writing ``path``)."""
     import matplotlib
 
     if path is not None:
         matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    if ax is None:
+        return plt, plt.subplots(figsize=(8, 4.5))[1], True
+    return plt, ax, False
+
+
+def _save(plt, ax, own, path):
+    if own and path is not None:
+        ax.figure.tight_layout()
+        ax.figure.savefig(path, dpi=110)
+        plt.close(ax.figure)
+    return ax
+
+
+def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix=""):
+    """Primary amplitude against frequency for one or several :class:`FrequencyResponse`.
+
+    Filled markers: stable orbits; open markers: unstable; colour by period multiple
+    (period-1, and subharmonics n > 1); red crosses on the axis: failed points."""
+    plt, ax, own = _axes(path, ax)
     if not isinstance(frfs, (list, tuple)):
         frfs = [frfs]
-    own = ax is None
-    if own:
-        fig, ax = plt.subplots(figsize=(8, 4.5))
     colors = plt.get_cmap("tab10")
     markers = {"parallel": "o", "up": "^", "down": "v"}
     for frf in frfs:
@@ -50,11 +63,7 @@ def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix=
     ax.set(xlabel="ω [rad/s]", ylabel="primary amplitude (half peak-to-peak) [mm]", title=title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    if own and path is not None:
-        fig.tight_layout()
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return ax
+    return _save(plt, ax, own, path)
 
 
 BIFURCATION_STYLE = {"fold": ("o", "black", "fold"),
@@ -69,17 +78,9 @@ def plot_branches(branches, path=None, *, ax=None, dof=None, field="amplitude", 
     doubling ■, Neimark–Sacker ◆).  ``dof``: plot ``dof_<field>`` at that degree of freedom
     (default the system's observable, ``field`` = amplitude, rms or harmonic); ``scale``
     multiplies the values (1e3 for mm)."""
-    import matplotlib
-
-    if path is not None:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt, ax, own = _axes(path, ax)
     if not isinstance(branches, (list, tuple)):
         branches = [branches]
-    own = ax is None
-    if own:
-        fig, ax = plt.subplots(figsize=(8, 4.5))
     colors = plt.get_cmap("tab10")
     seen = set()
     for br in branches:
@@ -125,11 +126,7 @@ def plot_branches(branches, path=None, *, ax=None, dof=None, field="amplitude", 
            title=title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    if own and path is not None:
-        fig.tight_layout()
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return ax
+    return _save(plt, ax, own, path)
 
 
 def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=1.0, unit=""):
@@ -137,15 +134,7 @@ def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=1.0, u
     ``t = kT`` over the statistics window, for every initial state, against ``ω``; periodic
     responses in colour by period multiple (a period-n orbit shows n points), the others
     grey."""
-    import matplotlib
-
-    if path is not None:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    own = ax is None
-    if own:
-        fig, ax = plt.subplots(figsize=(8, 4.5))
+    plt, ax, own = _axes(path, ax)
     colors = plt.get_cmap("tab10")
     seen = set()
     for m in maps:
@@ -161,8 +150,4 @@ def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=1.0, u
            title=title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, markerscale=4)
-    if own and path is not None:
-        fig.tight_layout()
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return ax
+    return _save(plt, ax, own, path)

@@ -111,12 +111,12 @@ def resolve_method(method, where, **options):
                      f"got {method!r}")
 
 
-def _check(system, forcing):
+def check_system_and_forcing(system, forcing, where="steady_state"):
     if not isinstance(system, AbstractSystem):
         raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
                          f"StructuralSystem, got {type(system).__name__}")
     if not isinstance(forcing, Harmonic):
-        raise ValueError("steady_state needs a periodic forcing: forcing must be a Harmonic, "
+        raise ValueError(f"{where} needs a periodic forcing: forcing must be a Harmonic, "
                          f"got {type(forcing).__name__}")
 
 
@@ -166,7 +166,7 @@ def steady_state(system, forcing, *, method="shooting", guess=None, solver=None,
     ```
     """
     require_x64("steady_state")
-    _check(system, forcing)
+    check_system_and_forcing(system, forcing)
     method = resolve_method(method, "steady_state", n=n, tol=tol, n_max=n_max,
                             newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
                             root=root, retry=retry)

@@ -15,6 +15,7 @@ import numpy as np
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_time_grid, require_x64
 from ._forcing import Harmonic
+from ._orbit import SteadyResults, read_through
 from ._params import replace_params, resolve
 from ._simulate import choose_solver
 from ._status import Status, describe
@@ -27,7 +28,7 @@ DOF_FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState) if f.name.sta
 _INTEGER = ("period_multiple", "status", "iterations", "stable")
 
 
-class FrequencyResponse(eqx.Module):
+class FrequencyResponse(SteadyResults, eqx.Module):
     """Steady-state results over ``omegas`` (and designs): the point solve's
     :class:`SteadyState`, batched (``steady``), with the grid.
 
@@ -45,24 +46,6 @@ class FrequencyResponse(eqx.Module):
     params: dict
     direction: str = eqx.field(static=True, default="parallel")
     dof_names: tuple = eqx.field(static=True, default=())
-
-    @property
-    def states(self):
-        return self.steady.state
-
-    @property
-    def multipliers(self):
-        return self.steady.multipliers
-
-    @property
-    def ok(self):
-        return self.status == Status.SUCCESS
-
-    def dof(self, name, field="amplitude"):
-        """``dof_<field>`` (amplitude, rms or harmonic) at the degree of freedom ``name``."""
-        if name not in self.dof_names:
-            raise ValueError(f"dof must be one of {list(self.dof_names)}, got {name!r}")
-        return np.asarray(getattr(self.steady, "dof_" + field))[..., self.dof_names.index(name)]
 
     def failures(self):
         """``[(index, status text)]`` of the points that failed."""
@@ -91,10 +74,7 @@ class FrequencyResponse(eqx.Module):
                                 describe(np.atleast_2d(self.status)[p, f])])
 
 
-for _name in FIELDS + DOF_FIELDS:
-    setattr(FrequencyResponse, _name,
-            property(lambda self, n=_name: getattr(self.steady, n),
-                     doc=f"``SteadyState.{_name}`` per point."))
+read_through(FrequencyResponse, FIELDS + DOF_FIELDS, "point")
 
 
 def _forcing(amplitude, omega):

@@ -38,7 +38,9 @@ from ._linear import linear_guess  # noqa: E402
 from ._marching import Marching  # noqa: E402
 from ._method import AbstractSteadyMethod  # noqa: E402
 from ._params import get_param, parameter_names, replace_params  # noqa: E402
+from ._peak import BandPeak, exact_peak  # noqa: E402
 from ._plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
+from ._robust import Coexisting, RobustPeak, robust_peak  # noqa: E402
 from ._shooting import Shooting  # noqa: E402
 from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._status import Status, describe  # noqa: E402
@@ -63,7 +65,8 @@ __all__ = [
     "FrequencyResponse", "SteadyState", "frequency_response", "Shooting", "Marching",
     "AbstractSteadyMethod", "solve_point", "get_param", "linear_guess",
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
-    "band_objective", "smooth_max", "plot_tuning",
+    "band_objective", "smooth_max", "plot_tuning", "BandPeak", "exact_peak",
+    "Coexisting", "RobustPeak", "robust_peak",
     "LinearStructure", "cantilever_beam", "shear_building", "structure_from_matrices",
     "structure_from_modes", "AbstractSystem", "StructuralSystem", "AbstractElement", "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",

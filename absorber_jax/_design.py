@@ -40,7 +40,7 @@ from ._shooting import Shooting
 from ._status import Status
 from ._steady import make_config, solve_point
 
-OBJECTIVES = ("peak", "mean_square", "amplitude")
+OBJECTIVES = ("peak", "mean_square", "amplitude", "exact_peak")
 _TRACES = {"tune_step": 0}
 
 
@@ -58,6 +58,9 @@ def band_objective(amplitudes, objective="peak", softness=2e-3):
         return jnp.mean(amplitudes**2)
     if objective == "amplitude":
         return amplitudes[0]
+    if objective == "exact_peak":
+        raise ValueError("objective 'exact_peak' is not a function of grid amplitudes: use "
+                         "exact_peak(...) or tune(..., objective='exact_peak')")
     raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
 
 
@@ -123,6 +126,15 @@ def value_and_grad(system, params, omegas, *, amplitude, objective="peak", softn
 
     Returns ``(value, {name: dvalue/dname}, status per frequency)``."""
     names, omegas = _check(system, params, omegas, objective)
+    if objective == "exact_peak":
+        from ._peak import exact_peak
+
+        if omegas.size < 3:
+            raise ValueError("objective 'exact_peak' needs a grid of >= 3 frequencies")
+        pk = exact_peak(system, (omegas[0], omegas[-1]), amplitude=amplitude, params=names,
+                        n_freq=omegas.size, tol=tol, rtol=rtol, atol=atol,
+                        newton_steps=newton_steps, solver=solver)
+        return pk.value, pk.gradient, pk.grid_status
     p0 = jnp.array([float(get_param(system, k)) for k in names])
     ident = Reparam(lo=jnp.zeros(len(names)), hi=jnp.ones(len(names)),
                     bounded=jnp.zeros(len(names), bool))
@@ -178,7 +190,7 @@ def _check(system, params, omegas, objective):
 
 
 def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, steps=100,
-         n_freq=64, bounds=None, softness=2e-3, tol=1e-7, rtol=1e-10, atol=1e-10,
+         n_freq=64, bounds=None, softness=2e-3, peaks=2, tol=1e-7, rtol=1e-10, atol=1e-10,
          newton_steps=40, solver=None, progress=False, confirm=True, confirm_points=12,
          callback=None):
     """Tune absorber parameters to minimise the primary's steady-state amplitude over a band.
@@ -188,36 +200,53 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     - ``system``: the starting design; ``params``: names to tune (``"k1"``, ``"c1"``, ``"m"``,
       ``"gap"``, ``"N"``, ``"k2"``, ``"c2"``, ``"mu"``, ...).
     - ``band``: ``(lo, hi)`` [rad/s], sampled at ``n_freq`` points; ``amplitude``: F0 [N].
-    - ``objective``: ``"peak"`` (smooth maximum), ``"mean_square"`` or ``"amplitude"``
-      (``band = (ω, ω)``).
-    - ``optimizer``: an optax transformation (default Adam, learning rate 0.05 with cosine
-      decay over ``steps``) acting on the reparametrised values: ``log p`` for positive
-      parameters, ``logit`` of the position within ``bounds[name] = (lo, hi)`` otherwise.
+    - ``objective``:
+
+      - ``"exact_peak"``: the band's peak located exactly (:func:`exact_peak`: the zero of
+        ``dA/dω`` bracketed on the grid, gradient by the envelope theorem), over ``peaks``
+        slots (the tallest local maxima).  Minimised by default as the minimax problem it is,
+        ``min t`` subject to ``A_j(θ) <= t`` for every slot, by SLSQP on the epigraph, which
+        lands on the equal-peak optimum rather than zigzagging between the peaks;
+      - ``"peak"``: the smooth maximum of the grid (bias bounded by ``τ log n_freq``);
+      - ``"mean_square"``; ``"amplitude"`` (``band = (ω, ω)``).
+    - ``optimizer``: an optax transformation (default for the grid objectives: Adam, learning
+      rate 0.05 with cosine decay over ``steps``) acting on the reparametrised values:
+      ``log p`` for positive parameters, ``logit`` of the position within
+      ``bounds[name] = (lo, hi)`` otherwise.  With ``"exact_peak"`` an optax optimiser
+      descends the largest slot instead of the minimax solve.
+    - ``steps``: optimiser steps (SLSQP iterations for the minimax solve).
     - ``progress``: tqdm bar; ``confirm``: re-check the curves before and after with marching
       (an independent method) on ``confirm_points`` frequencies.
 
-    **Returns** ``(tuned_system, history)``; ``history`` holds per step ``objective``,
+    **Returns** ``(tuned_system, history)``; ``history`` holds per evaluation ``objective``,
     ``params`` (dict of lists), ``grad_norm``, ``failed`` (frequencies that did not converge),
-    ``nonsmooth``; plus ``omegas``, ``amplitude_before``/``after`` and, with ``confirm``,
-    the marching check.
+    ``nonsmooth``, (``"exact_peak"``) ``peaks`` and ``peak_omegas`` per slot; plus ``omegas``,
+    ``amplitude_before``/``after`` and, with ``confirm``, the marching check.
 
     ```python
     import absorber_jax as aj, optax
     system, _ = aj.presets.impact("kelvin_voigt")
     tuned, hist = aj.tune(system, ["k1", "c1"], (25.0, 45.0), amplitude=2.0, steps=30)
+    tuned, hist = aj.tune(system, ["k1", "c1"], (25.0, 45.0), amplitude=2.0,
+                          objective="exact_peak", steps=30)
     ```
     """
     require_x64("tune")
     import optax
-    from tqdm.auto import tqdm
 
     lo, hi = band
     check_scalar("tune", "band[0]", lo, lo=0.0, lo_open=True)
     check_scalar("tune", "band[1]", hi, lo=float(lo))
     if not isinstance(steps, int) or steps < 0:
         raise ValueError(f"tune.steps must be a non-negative integer, got {steps!r}")
+    exact = objective == "exact_peak"
+    if exact and not (isinstance(n_freq, int) and n_freq >= 3 and hi > lo):
+        raise ValueError("tune with objective='exact_peak' needs a band hi > lo and "
+                         f"n_freq >= 3, got band {band} and n_freq {n_freq!r}")
+    if exact and not (isinstance(peaks, int) and 1 <= peaks <= n_freq):
+        raise ValueError(f"tune.peaks must be an integer in [1, n_freq], got {peaks!r}")
     omegas = np.linspace(lo, hi, n_freq) if hi > lo else np.array([float(lo)])
-    names, omegas = _check(system, params, omegas, objective)
+    names, omegas = _check(system, params, omegas, "peak" if exact else objective)
     bounds = dict(bounds or {})
     for k in bounds:
         if k not in names:
@@ -235,66 +264,26 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
                              f"{bounds[k]}")
         if k not in bounds and v <= 0:
             raise ValueError(f"the starting {k} = {v:g} must be > 0 (or give bounds)")
-    if optimizer is None:
-        optimizer = optax.adam(optax.cosine_decay_schedule(0.05, max(steps, 1), alpha=0.05))
     cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
                       rtol, atol)
-    u = reparam.inverse(jnp.asarray(p0))
-    opt_state = optimizer.init(u)
-    om = jnp.asarray(omegas)
-    amp = jnp.asarray(amplitude, dtype=float)
-    guesses = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
+    u0 = reparam.inverse(jnp.asarray(p0))
+    evaluate = _Evaluator(system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
+                          objective, softness, peaks)
     hist = {"objective": [], "params": {k: [] for k in names}, "grad_norm": [], "failed": [],
             "nonsmooth": [], "seconds": [], "peak_bias": []}
-    prev_status = None
-    best = (np.inf, u)
-    amps_before = None
-    bar = tqdm(range(steps + 1), desc="tune", disable=not progress)
-    for it in bar:
-        t = time.perf_counter()
-        val, g, (amps, states, status) = _value_and_jac(system, names, reparam, u, om, amp,
-                                                        guesses, cfg, tol, newton_steps,
-                                                        objective, softness)
-        if not np.all(np.asarray(status) == Status.SUCCESS):
-            # Newton from the warm start (or the linear guess) failed somewhere: seed those
-            # frequencies from marching (march_then_shoot) and evaluate the step again
-            seeds = _reseed(system, names, reparam, u, omegas, amplitude, np.asarray(status),
-                            np.asarray(states), tol, newton_steps, cfg)
-            val, g, (amps, states, status) = _value_and_jac(
-                system, names, reparam, u, om, amp, jnp.asarray(seeds), cfg, tol,
-                newton_steps, objective, softness)
-        val, g, amps, status = float(val), np.asarray(g), np.asarray(amps), np.asarray(status)
-        ok = status == Status.SUCCESS
-        if amps_before is None:
-            amps_before = amps
-        # warm start the next step from this step's orbits where they converged
-        guesses = jnp.where(jnp.asarray(ok)[:, None], states, jnp.nan)
-        p = np.asarray(reparam.forward(u))
-        hist["objective"].append(val)
-        for k, v in zip(names, p):
-            hist["params"][k].append(float(v))
-        hist["grad_norm"].append(float(np.linalg.norm(g)))
-        hist["failed"].append(int((~ok).sum()))
-        hist["nonsmooth"].append(0 if prev_status is None else int((prev_status != status).sum()))
-        hist["peak_bias"].append(float(np.max(amps[ok]) - val) if ok.any() and
-                                 objective == "peak" else math.nan)
-        hist["seconds"].append(time.perf_counter() - t)
-        prev_status = status
-        if ok.all() and val < best[0]:
-            best = (val, u)
-        bar.set_postfix(objective=f"{val:.4g}", **{k: f"{v:.4g}" for k, v in zip(names, p)})
-        if callback is not None:
-            callback(it, val, dict(zip(names, p)))
-        if it == steps or not np.all(np.isfinite(g)):
-            break
-        updates, opt_state = optimizer.update(jnp.asarray(g), opt_state, u)
-        u = u + updates
-    u_best = best[1]
+    if exact:
+        hist.update(peaks=[], peak_omegas=[])
+    if exact and optimizer is None:
+        u_best = _minimax(evaluate, u0, steps, hist, progress, callback)
+    else:
+        if optimizer is None:
+            optimizer = optax.adam(optax.cosine_decay_schedule(0.05, max(steps, 1), alpha=0.05))
+        u_best = _descend(evaluate, optimizer, u0, steps, hist, progress, callback)
     p_best = np.asarray(reparam.forward(u_best))
     tuned = replace_params(system, {k: float(v) for k, v in zip(names, p_best)}, check=True)
     hist["omegas"] = omegas
     hist["names"] = names
-    hist["amplitude_before"] = amps_before
+    hist["amplitude_before"] = evaluate.amps_before
     from ._sweep import frequency_response
 
     after = frequency_response(tuned, omegas, amplitude=float(amplitude), tol=tol, rtol=rtol,
@@ -313,6 +302,159 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
                            "period_before": before.period_multiple,
                            "period_after": after_m.period_multiple}
     return tuned, hist
+
+
+class _Evaluator:
+    """The objective, its gradient in the reparametrised ``u`` and the bookkeeping shared by
+    the optimisers: warm starts from the last converged orbits, reseeding of failed
+    frequencies by marching, and one history record per evaluation."""
+
+    def __init__(self, system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
+                 objective, softness, peaks):
+        self.args = (system, names, reparam)
+        self.omegas, self.amplitude, self.cfg = omegas, amplitude, cfg
+        self.tol, self.newton_steps = tol, newton_steps
+        self.objective, self.softness, self.peaks = objective, softness, peaks
+        self.guesses = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
+        self.amps_before = None
+        self.prev_status = None
+        self.cache = {}
+
+    def _run(self, u, guesses):
+        system, names, reparam = self.args
+        om, amp = jnp.asarray(self.omegas), jnp.asarray(self.amplitude, dtype=float)
+        if self.objective == "exact_peak":
+            from ._peak import peak_core
+
+            out = peak_core(system, names, reparam, u, om, amp, guesses, self.cfg,
+                            float(self.tol), int(self.newton_steps), int(self.peaks), 1e-10, 40)
+            out = {k: np.asarray(v) for k, v in out.items()}
+            return (out, out["grid_amplitude"], out["grid_states"], out["grid_status"])
+        val, g, (amps, states, status) = _value_and_jac(
+            system, names, reparam, u, om, amp, guesses, self.cfg, self.tol,
+            self.newton_steps, self.objective, self.softness)
+        return ((float(val), np.asarray(g)), np.asarray(amps), np.asarray(states),
+                np.asarray(status))
+
+    def __call__(self, u, hist):
+        """``(values, jacobian, ok)``: per slot for "exact_peak" (values (K,), jacobian (K, P)),
+        else the objective as one slot.  Cached by ``u``."""
+        u = jnp.asarray(u, dtype=float)
+        key = np.asarray(u).tobytes()
+        if key in self.cache:
+            return self.cache[key]
+        t = time.perf_counter()
+        res, amps, states, status = self._run(u, self.guesses)
+        if not np.all(status == Status.SUCCESS):
+            # Newton from the warm start (or the linear guess) failed somewhere: seed those
+            # frequencies from marching (march_then_shoot) and evaluate again
+            system, names, reparam = self.args
+            seeds = _reseed(system, names, reparam, u, self.omegas, self.amplitude, status,
+                            states, self.tol, self.newton_steps, self.cfg)
+            res, amps, states, status = self._run(u, jnp.asarray(seeds))
+        grid_ok = status == Status.SUCCESS
+        if self.amps_before is None:
+            self.amps_before = amps
+        self.guesses = jnp.where(jnp.asarray(grid_ok)[:, None], states, jnp.nan)
+        if self.objective == "exact_peak":
+            ok = res["status"] == Status.SUCCESS
+            vals, jac = res["amplitudes"], res["jac"]
+            val = float(np.max(vals[ok])) if ok.any() else math.nan
+            g = jac[int(np.argmax(np.where(ok, vals, -np.inf)))] if ok.any() else jac[0] * np.nan
+            hist["peaks"].append(vals.copy())
+            hist["peak_omegas"].append(res["omegas"].copy())
+            bias = 0.0
+        else:
+            (val, g), ok = res, np.array([grid_ok.all()])
+            vals, jac = np.array([val]), g[None]
+            bias = (float(np.max(amps[grid_ok]) - val) if grid_ok.any() and
+                    self.objective == "peak" else math.nan)
+        system, names, reparam = self.args
+        p = np.asarray(reparam.forward(u))
+        hist["objective"].append(val)
+        for k, v in zip(names, p):
+            hist["params"][k].append(float(v))
+        hist["grad_norm"].append(float(np.linalg.norm(g)))
+        hist["failed"].append(int((~grid_ok).sum()))
+        hist["nonsmooth"].append(0 if self.prev_status is None
+                                 else int((self.prev_status != status).sum()))
+        hist["peak_bias"].append(bias)
+        hist["seconds"].append(time.perf_counter() - t)
+        self.prev_status = status
+        out = (vals, jac, ok & grid_ok.all(), val, g, dict(zip(names, p)))
+        self.cache = {key: out}
+        return out
+
+
+def _descend(evaluate, optimizer, u, steps, hist, progress, callback):
+    """Gradient descent with an optax ``optimizer``; the best design whose every frequency
+    converged."""
+    from tqdm.auto import tqdm
+
+    opt_state = optimizer.init(u)
+    best = (np.inf, u)
+    bar = tqdm(range(steps + 1), desc="tune", disable=not progress)
+    for it in bar:
+        _, _, ok, val, g, p = evaluate(u, hist)
+        if ok.all() and val < best[0]:
+            best = (val, u)
+        bar.set_postfix(objective=f"{val:.4g}", **{k: f"{v:.4g}" for k, v in p.items()})
+        if callback is not None:
+            callback(it, val, p)
+        if it == steps or not np.all(np.isfinite(g)):
+            break
+        updates, opt_state = optimizer.update(jnp.asarray(g), opt_state, u)
+        u = u + updates
+    return best[1]
+
+
+# how far (in log p, or in logit of the bounded position) SLSQP may move a parameter from its
+# start: a factor e^7 ~ 1100 either way
+MINIMAX_REACH = 7.0
+
+
+def _minimax(evaluate, u0, steps, hist, progress, callback):
+    """``min t`` s.t. ``A_j(u) <= t`` for every peak slot ``j`` (SLSQP on the epigraph, the
+    amplitudes scaled by the starting peak).  Failed slots give no constraint information:
+    their value is the largest successful one, their gradient zero."""
+    from scipy.optimize import minimize
+    from tqdm.auto import tqdm
+
+    u0 = np.asarray(u0, dtype=float)
+    vals0, _, ok0, val0, _, _ = evaluate(u0, hist)
+    if not ok0.any():
+        raise ValueError("tune: the starting design's peak could not be computed "
+                         "(no slot converged); check the band and the design")
+    scale = float(val0)
+    best = [val0 if ok0.all() else np.inf, u0]
+    bar = tqdm(total=steps, desc="tune (minimax)", disable=not progress)
+
+    def slots(x):
+        u = x[:-1]
+        vals, jac, ok, val, _, p = evaluate(u, hist)
+        if ok.all() and val < best[0]:
+            best[0], best[1] = val, np.array(u)
+        fill = np.max(vals[ok]) if ok.any() else 10.0 * scale
+        return np.where(ok, vals, fill) / scale, np.where(ok[:, None], jac, 0.0) / scale
+
+    def step_done(x):
+        bar.update(1)
+        if callback is not None:
+            _, _, _, val, _, p = evaluate(x[:-1], hist)
+            callback(bar.n, val, p)
+
+    n = u0.size
+    x0 = np.concatenate([u0, [float(np.max(vals0[ok0])) / scale]])
+    cons = {"type": "ineq", "fun": lambda x: x[-1] - slots(x)[0],
+            "jac": lambda x: np.hstack([-slots(x)[1], np.ones((len(vals0), 1))])}
+    grad_t = np.concatenate([np.zeros(n), [1.0]])
+    bounds = [(v - MINIMAX_REACH, v + MINIMAX_REACH) for v in u0] + [(0.0, None)]
+    if steps > 0:
+        minimize(lambda x: x[-1], x0, jac=lambda x: grad_t, constraints=[cons], bounds=bounds,
+                 method="SLSQP", callback=step_done,
+                 options=dict(maxiter=steps, ftol=1e-12))
+    bar.close()
+    return jnp.asarray(best[1])
 
 
 def plot_tuning(system_before, tuned, hist, path=None, title=""):

@@ -1,0 +1,330 @@
+"""The exact peak of a steady-state response over a frequency band, and its gradient.
+
+``A(ω; θ)`` is the observable's half peak-to-peak amplitude on the period-1 orbit at ``ω``
+(design parameters ``θ``); the band's peak is ``P(θ) = max_{ω ∈ band} A(ω; θ)``.
+
+1. **Grid.** One vmapped shooting pass over ``n_freq`` frequencies finds the candidates: the
+   ``peaks`` highest local maxima of the sampled curve (band edges included), ordered by
+   frequency.  When the curve has fewer local maxima, the remaining slots hold the largest
+   other grid values (still lower bounds of ``P``, so a minimax design may use them as
+   constraints).
+2. **Locate.** For each local maximum the slope ``dA/dω`` (forward mode through the implicit
+   orbit: no finite differences) is bracketed between the grid neighbours and its zero is
+   found by Illinois regula falsi, each trial orbit warm-started from the bracket end nearest
+   to it.  A maximum at a band edge with the slope pointing out of the band stays there.
+3. **Refined amplitude.** The extremes of the observable over the period are located between
+   the samples by quintic Hermite interpolation of the observable and its first two time
+   derivatives (from the vector field along the orbit).  ``A`` is then smooth in ``ω`` and
+   ``θ`` (errors ~1e-12 of the amplitude on smooth orbits) instead of carrying the ~1e-7
+   steps of parabolic interpolation, which would spoil the slope and its zero.
+4. **Gradient** by the envelope theorem: at an interior maximum ``∂A/∂ω = 0``, so
+   ``dP/dθ = ∂A/∂θ (ω*, θ)``, the amplitude differentiated at the fixed located frequency.
+   No derivative of ``ω*`` is needed, and no frequency grid limits the value.
+
+A peak whose slope does not change sign between the grid neighbours (a fold, where the
+response jumps, or a peak narrower than the grid spacing) keeps its grid value and is flagged
+``located = False``.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._flow import _flow, state_scale
+from ._forcing import Harmonic
+from ._orbit import SAMPLES_PER_PERIOD
+from ._shooting import Shooting
+from ._status import Status
+from ._steady import solve_point
+
+# kinds of a peak slot
+LOCATED, EDGE, FILLER, UNBRACKETED = 0, 1, 2, 3
+KIND_NAMES = {LOCATED: "located", EDGE: "band edge", FILLER: "grid point",
+              UNBRACKETED: "not bracketed"}
+
+# quintic Hermite on [0, 1]: coefficients a3..a5 from the end conditions (see _hermite_extreme)
+_H = np.linalg.inv(np.array([[1.0, 1.0, 1.0], [3.0, 4.0, 5.0], [6.0, 12.0, 20.0]]))
+
+
+def _hermite_max(y0, d0, c0, y1, d1, c1, h):
+    """Largest value on ``[0, h]`` of the quintic matching value, first and second
+    derivative at both ends (its slope has a zero there: ``d0 >= 0 >= d1``)."""
+    D0, C0, D1, C1 = d0 * h, c0 * h * h, d1 * h, c1 * h * h
+    a0, a1, a2 = y0, D0, 0.5 * C0
+    rhs = jnp.stack([y1 - a0 - a1 - a2, D1 - a1 - 2 * a2, C1 - 2 * a2])
+    a3, a4, a5 = jnp.asarray(_H) @ rhs
+    dp = lambda s: a1 + 2 * a2 * s + 3 * a3 * s**2 + 4 * a4 * s**3 + 5 * a5 * s**4  # noqa: E731
+    ddp = lambda s: 2 * a2 + 6 * a3 * s + 12 * a4 * s**2 + 20 * a5 * s**3  # noqa: E731
+    # start from the zero of the slope's chord, then Newton (safeguarded to the interval)
+    s = jnp.clip(D0 / jnp.where(D0 - D1 == 0, 1.0, D0 - D1), 0.0, 1.0)
+    for _ in range(6):
+        step = dp(s) / jnp.where(ddp(s) < 0, ddp(s), -1.0)
+        s = jnp.clip(s - step, 0.0, 1.0)
+    p = a0 + s * (a1 + s * (a2 + s * (a3 + s * (a4 + s * a5))))
+    return jnp.maximum(p, jnp.maximum(y0, y1))
+
+
+def _extreme(y, d, c, h):
+    """Maximum of the periodic signal sampled at spacing ``h`` (values ``y``, first and second
+    time derivatives ``d``, ``c``), located between samples."""
+    n = y.shape[0]
+    i = jnp.argmax(y)
+    j = jnp.where(d[i] >= 0, i, (i - 1) % n)          # the interval [j, j+1] holds the maximum
+    k = (j + 1) % n
+    return _hermite_max(y[j], d[j], c[j], y[k], d[k], c[k], h)
+
+
+def refined_amplitude(system, forcing, x, cfg, n=1):
+    """Half peak-to-peak of ``system.observable`` over the period-``n`` orbit from the scaled
+    state ``x``, its extremes located between samples (module docstring, step 3)."""
+    scale = state_scale(system, forcing)
+    T = 2 * jnp.pi / forcing.omega
+    N = SAMPLES_PER_PERIOD * n
+    ts = jnp.arange(N) * (n * T / N)
+    ys, status = _flow((system, forcing), x, n * T, ts, cfg=cfg.over_periods(n))
+    s = ys * scale
+
+    def derivatives(t, si):
+        def rate_of_obs(t_, s_):
+            return jax.jvp(system.observable, (s_,), (system.vector_field(t_, s_, forcing),))
+
+        f = system.vector_field(t, si, forcing)
+        (y, d), (_, c) = jax.jvp(rate_of_obs, (t, si), (jnp.ones_like(t), f))
+        return y, d, c
+
+    y, d, c = jax.vmap(derivatives)(ts, s)
+    h = n * T / N
+    amp = 0.5 * (_extreme(y, d, c, h) + _extreme(-y, -d, -c, h))
+    return amp, status
+
+
+def amplitude_at(system, omega, amplitude, guess, cfg, method):
+    """Refined amplitude at ``omega`` on the orbit found from ``guess`` (internal state; NaN:
+    the method's start), the internal orbit state and the status."""
+    forcing = Harmonic(amplitude=amplitude, omega=omega)
+    res = solve_point(system, forcing, method, cfg, guess=guess, with_floquet=False)
+    x_int = system.to_internal(res.state)
+    a, st = refined_amplitude(system, forcing, x_int / state_scale(system, forcing), cfg)
+    status = jnp.where(res.status == Status.SUCCESS, st, res.status)
+    return a, (x_int, status)
+
+
+def evaluate(system_at, v, omega, amplitude, guess, cfg, method):
+    """``(A, [dA/dω, dA/dv...], internal state, status)`` at ``omega`` for the design ``v``
+    (``system_at(v)`` is the system): one forward-mode pass whose first tangent is the
+    slope that locates the peak and whose others are the design gradient there."""
+    def f(z):
+        a, aux = amplitude_at(system_at(z[1:]), z[0], amplitude, guess, cfg, method)
+        return a, (a, aux)
+
+    z = jnp.concatenate([jnp.reshape(omega, (1,)), jnp.asarray(v, dtype=float)])
+    grad, (a, (x, st)) = jax.jacfwd(f, has_aux=True)(z)
+    ok = (st == Status.SUCCESS) & jnp.all(jnp.isfinite(grad)) & jnp.isfinite(a)
+    st = jnp.where(ok | (st != Status.SUCCESS), st, Status.NONFINITE)
+    return a, jnp.where(ok, grad, 0.0), x, st
+
+
+def candidates(omegas, amps, slopes, ok, peaks):
+    """The ``peaks`` slots (module docstring, step 1), ordered by frequency: for each, its kind
+    (LOCATED: a bracket ``[ω_j, ω_j+1]`` where the slope turns from + to -; EDGE: a band edge
+    whose slope points out of the band; FILLER: a grid point) and grid index ``j``."""
+    F = omegas.shape[0]
+    a = jnp.where(ok, amps, -jnp.inf)
+    big = 2.0 * jnp.max(jnp.where(ok, jnp.abs(amps), 0.0)) + 1.0
+    bracket = ok[:-1] & ok[1:] & (slopes[:-1] > 0) & (slopes[1:] <= 0)
+    s_br = jnp.where(bracket, jnp.maximum(a[:-1], a[1:]) + big, -jnp.inf)
+    s_lo = jnp.where(ok[0] & (slopes[0] <= 0), a[0] + big, -jnp.inf)
+    s_hi = jnp.where(ok[-1] & (slopes[-1] >= 0), a[-1] + big, -jnp.inf)
+    # a grid point already taken as a band-edge peak is no filler
+    fill = a.at[0].set(jnp.where(jnp.isfinite(s_lo), -jnp.inf, a[0]))
+    fill = fill.at[-1].set(jnp.where(jnp.isfinite(s_hi), -jnp.inf, a[-1]))
+    score = jnp.concatenate([s_br, jnp.stack([s_lo, s_hi]), fill])
+    kinds = jnp.concatenate([jnp.full(F - 1, LOCATED), jnp.array([EDGE, EDGE]),
+                             jnp.full(F, FILLER)])
+    index = jnp.concatenate([jnp.arange(F - 1), jnp.array([0, F - 1]), jnp.arange(F)])
+    _, top = jax.lax.top_k(score, peaks)
+    kind, j = kinds[top], index[top]
+    where = jnp.where(kind == LOCATED, 0.5 * (omegas[j] + omegas[jnp.minimum(j + 1, F - 1)]),
+                      omegas[j])
+    order = jnp.argsort(where)
+    return kind[order], j[order]
+
+
+def locate(system_at, v, omegas, amplitude, grid, kind, j, cfg, method, xtol, max_iter):
+    """One slot: the zero of the slope in the bracket ``[ω_j, ω_j+1]`` by Illinois regula
+    falsi (LOCATED), or the grid point ``j`` as it is.  Returns ``(ω, A, gradient, state,
+    status, iterations)``; vmap over slots."""
+    amps, grads, states, status = grid
+    F = omegas.shape[0]
+    k = jnp.minimum(j + 1, F - 1)
+    a, b, ga, gb = omegas[j], omegas[k], grads[j, 0], grads[k, 0]
+    start = jnp.where((kind == LOCATED) & (amps[k] > amps[j]), k, j)
+    init = dict(a=a, b=b, ga=ga, gb=gb, xa=states[j], xb=states[k], side=jnp.array(0),
+                it=jnp.array(0), w=omegas[start], amp=amps[start], grad=grads[start],
+                x=states[start], st=status[start], done=kind != LOCATED)
+
+    def body(c):
+        w = (c["a"] * c["gb"] - c["b"] * c["ga"]) / (c["gb"] - c["ga"])
+        span = c["b"] - c["a"]
+        w = jnp.clip(w, c["a"] + 1e-3 * span, c["b"] - 1e-3 * span)
+        guess = jnp.where(w - c["a"] < c["b"] - w, c["xa"], c["xb"])
+        amp, grad, x, st = evaluate(system_at, v, w, amplitude, guess, cfg, method)
+        g = grad[0]
+        left = g < 0                        # the zero lies in [a, w]: w replaces b
+        n = dict(c)
+        n.update(b=jnp.where(left, w, c["b"]), xb=jnp.where(left, x, c["xb"]),
+                 gb=jnp.where(left, g, jnp.where(c["side"] == -1, 0.5 * c["gb"], c["gb"])),
+                 a=jnp.where(left, c["a"], w), xa=jnp.where(left, c["xa"], x),
+                 ga=jnp.where(left, jnp.where(c["side"] == 1, 0.5 * c["ga"], c["ga"]), g),
+                 side=jnp.where(left, 1, -1), it=c["it"] + 1, w=w, amp=amp, grad=grad, x=x,
+                 st=st)
+        n["done"] = ((st != Status.SUCCESS) | (jnp.abs(w - c["w"]) <= xtol * w)
+                     | (n["b"] - n["a"] <= xtol * w) | (g == 0))
+        return n
+
+    out = jax.lax.while_loop(lambda c: (~c["done"]) & (c["it"] < max_iter), body, init)
+    return out["w"], out["amp"], out["grad"], out["x"], out["st"], out["it"]
+
+
+def shooting_for_design(tol, newton_steps):
+    return Shooting(tol=tol, newton_steps=newton_steps, retry=False)
+
+
+class BandPeak(eqx.Module):
+    """The exact peak of a response over a band (:func:`exact_peak`).
+
+    Per slot (``peaks`` of them, ordered by frequency): ``omegas`` [rad/s], ``amplitudes``
+    (refined, see :mod:`absorber_jax._peak`), ``kinds`` (0 located, 1 band edge, 2 grid
+    point, 3 not bracketed: see ``KIND_NAMES``), ``located``, ``iterations`` (Illinois
+    steps), ``status``; ``gradients``: ``d amplitude / d parameter`` per slot and named
+    parameter (envelope theorem).  ``grid_omegas``/``grid_amplitude``/``grid_status``: the
+    coarse pass."""
+
+    omegas: np.ndarray
+    amplitudes: np.ndarray
+    kinds: np.ndarray
+    iterations: np.ndarray
+    status: np.ndarray
+    gradients: dict
+    grid_omegas: np.ndarray
+    grid_amplitude: np.ndarray
+    grid_status: np.ndarray
+
+    @property
+    def located(self):
+        return self.kinds == LOCATED
+
+    @property
+    def ok(self):
+        return self.status == Status.SUCCESS
+
+    @property
+    def index(self):
+        """Slot of the band's peak (the largest amplitude among successful slots)."""
+        return int(np.argmax(np.where(self.ok, self.amplitudes, -np.inf)))
+
+    @property
+    def value(self):
+        """The band's peak amplitude."""
+        return float(self.amplitudes[self.index]) if self.ok.any() else float("nan")
+
+    @property
+    def omega(self):
+        """The frequency of the band's peak [rad/s]."""
+        return float(self.omegas[self.index]) if self.ok.any() else float("nan")
+
+    @property
+    def gradient(self):
+        """``d value / d parameter`` (the peak slot's row of ``gradients``)."""
+        return {k: float(v[self.index]) for k, v in self.gradients.items()}
+
+    def summary(self):
+        lines = []
+        for j in range(len(self.omegas)):
+            lines.append(f"  ω = {self.omegas[j]:.8g} rad/s  amplitude {self.amplitudes[j]:.8g}"
+                         f"  ({KIND_NAMES[int(self.kinds[j])]}, {int(self.iterations[j])} "
+                         f"iterations, status {int(self.status[j])})")
+        return f"peak {self.value:.8g} at ω = {self.omega:.8g} rad/s\n" + "\n".join(lines)
+
+
+@eqx.filter_jit
+def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps,
+              peaks, xtol, max_iter):
+    """Slots of the band's peak at the design ``u`` (``reparam.forward(u)`` gives the named
+    parameters; ``reparam`` None: ``u`` are the parameters themselves): the grid pass, the
+    located frequencies, the refined amplitudes and their gradients in ``u`` at the located
+    frequencies (envelope theorem).  One compilation per shape."""
+    from ._params import replace_params
+
+    forward = (lambda v: v) if reparam is None else reparam.forward
+
+    def system_at(v):
+        return replace_params(system, dict(zip(names, forward(v))), check=False)
+
+    method = shooting_for_design(tol, newton_steps)
+    grid = jax.vmap(lambda w, g: evaluate(system_at, u, w, amplitude, g, cfg, method))(
+        omegas, guesses)
+    amps, grads, states, status = grid
+    kind, j = candidates(omegas, amps, grads[:, 0], status == Status.SUCCESS, peaks)
+    w, a, g, x, st, it = jax.vmap(
+        lambda kk, jj: locate(system_at, u, omegas, amplitude, grid, kk, jj, cfg, method, xtol,
+                              max_iter))(kind, j)
+    return dict(omegas=w, amplitudes=a, kinds=kind, iterations=it, status=st, jac=g[:, 1:],
+                slopes=g[:, 0], states=x, grid_amplitude=amps, grid_states=states,
+                grid_status=status)
+
+
+def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e-8,
+               rtol=1e-10, atol=1e-10, newton_steps=40, solver=None, xtol=1e-10,
+               max_iter=40) -> BandPeak:
+    """The largest steady-state amplitude of ``system.observable`` over ``band = (lo, hi)``
+    [rad/s] under a harmonic force of ``amplitude`` F0 [N], located exactly (module
+    docstring), with its gradient in the named ``params`` (envelope theorem).
+
+    ``n_freq``: points of the coarse grid that brackets the peaks (enough to separate them);
+    ``peaks``: slots located (2 for a tuned mass damper's two peaks); ``xtol``: relative
+    tolerance on the located frequencies; ``tol``, ``rtol``, ``atol``, ``newton_steps``,
+    ``solver``: shooting and integrator settings.
+
+    ```python
+    import absorber_jax as aj
+    system, _ = aj.presets.impact("kelvin_voigt")
+    pk = aj.exact_peak(system, (25.0, 45.0), amplitude=2.0, params=["k1", "c1"])
+    pk.value, pk.omega, pk.gradient
+    ```
+    """
+    from ._checks import check_scalar, require_x64
+    from ._design import _check
+    from ._params import get_param
+    from ._steady import check_system_and_forcing, make_config
+
+    require_x64("exact_peak")
+    check_system_and_forcing(system, Harmonic(amplitude=1.0, omega=1.0), "exact_peak")
+    lo, hi = band
+    check_scalar("exact_peak", "band[0]", lo, lo=0.0, lo_open=True)
+    check_scalar("exact_peak", "band[1]", hi, lo=float(lo), lo_open=True)
+    if not isinstance(n_freq, int) or n_freq < 3:
+        raise ValueError(f"exact_peak.n_freq must be an integer >= 3, got {n_freq!r}")
+    if not isinstance(peaks, int) or not 1 <= peaks <= n_freq:
+        raise ValueError(f"exact_peak.peaks must be an integer in [1, n_freq], got {peaks!r}")
+    check_scalar("exact_peak", "xtol", xtol, lo=0.0, lo_open=True)
+    omegas = np.linspace(float(lo), float(hi), n_freq)
+    names = tuple(params)
+    if names:
+        names, _ = _check(system, names, omegas, "peak")
+    p0 = jnp.array([float(get_param(system, k)) for k in names])
+    cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
+                      rtol, atol)
+    guesses = jnp.full((n_freq, system.num_states), jnp.nan, dtype=jnp.float64)
+    out = peak_core(system, names, None, p0, jnp.asarray(omegas), jnp.asarray(amplitude, float),
+                    guesses, cfg, float(tol), int(newton_steps), int(peaks), float(xtol),
+                    int(max_iter))
+    out = {k: np.asarray(v) for k, v in out.items()}
+    return BandPeak(omegas=out["omegas"], amplitudes=out["amplitudes"], kinds=out["kinds"],
+                    iterations=out["iterations"], status=out["status"],
+                    gradients={k: out["jac"][:, i] for i, k in enumerate(names)},
+                    grid_omegas=omegas, grid_amplitude=out["grid_amplitude"],
+                    grid_status=out["grid_status"])

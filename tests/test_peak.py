@@ -1,0 +1,159 @@
+"""The exact band peak (dA/dω = 0 located on the orbit family, envelope-theorem gradient) and
+the minimax design on it, against closed forms, dense grids and central differences."""
+
+import numpy as np
+import pytest
+import reference_jumps as rj
+from reference_hinf import h_infinity, nishihara_asami, peaks, receptance
+
+import absorber_jax as aj
+
+TIGHT = dict(tol=1e-10, rtol=1e-12, atol=1e-12)
+M, K, WN = 1.0, 1e4, 100.0
+
+
+def tmd(mu, f, zeta):
+    """A linear tuned mass damper on an undamped primary: the impact absorber with no gap and
+    a Kelvin–Voigt contact is a spring and dashpot in both directions."""
+    m = mu * M
+    ka = m * (f * WN) ** 2
+    law = aj.KelvinVoigt(stiffness=ka, damping=2 * zeta * np.sqrt(ka * m))
+    return aj.ImpactAbsorber(M=M, k=K, c=0.0, m=m, gap=0.0, contact=law)
+
+
+def test_exact_peaks_and_gradients_match_the_closed_form():
+    mu, f, zeta = 0.05, 0.95, 0.1
+    system = tmd(mu, f, zeta)
+    pk = aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, params=["k1", "c1"], n_freq=16,
+                       **TIGHT)
+    assert np.all(pk.ok) and np.all(pk.located)
+    ref = peaks(mu, f, zeta)
+    assert len(ref) == 2
+    for j, (r, h) in enumerate(ref):
+        np.testing.assert_allclose(pk.omegas[j], r * WN, rtol=1e-8)
+        np.testing.assert_allclose(pk.amplitudes[j] * K, h, rtol=1e-8)
+    assert pk.value == pytest.approx(max(h for _, h in ref) / K, rel=1e-8)
+    # the envelope-theorem gradient against central differences of the closed-form peaks
+    ka, ca = float(aj.get_param(system, "k1")), float(aj.get_param(system, "c1"))
+    m = mu * M
+
+    def closed_peaks(k1, c1):
+        fz = (np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m)))
+        return np.array([h for _, h in peaks(mu, *fz)]) / K
+
+    for name, p in (("k1", ka), ("c1", ca)):
+        h = 1e-5 * p
+        args_p = (ka + h, ca) if name == "k1" else (ka, ca + h)
+        args_m = (ka - h, ca) if name == "k1" else (ka, ca - h)
+        fd = (closed_peaks(*args_p) - closed_peaks(*args_m)) / (2 * h)
+        np.testing.assert_allclose(pk.gradients[name], fd, rtol=1e-6, err_msg=name)
+    assert pk.gradient["k1"] == pk.gradients["k1"][pk.index]
+
+
+def test_exact_peak_of_an_impact_absorber_matches_a_dense_grid_and_central_differences():
+    system, _ = aj.presets.impact("kelvin_voigt")
+    kw = dict(amplitude=2.0, n_freq=16, **TIGHT)
+    pk = aj.exact_peak(system, (25.0, 45.0), params=["k1", "c1"], **kw)
+    assert pk.ok[pk.index] and pk.located[pk.index]
+    w = pk.omega
+    # a dense grid around the located peak; the grid maximum refined by the parabola through
+    # its three highest points (error ~ spacing^3)
+    dense = np.linspace(w - 0.2, w + 0.2, 41)
+    fr = aj.frequency_response(system, dense, amplitude=2.0, tol=1e-10, rtol=1e-12, atol=1e-12)
+    assert np.all(fr.ok)
+    a = np.asarray(fr.amplitude)
+    i = int(np.argmax(a))
+    assert 0 < i < len(a) - 1
+    y0, y1, y2 = a[i - 1:i + 2]
+    dw = dense[1] - dense[0]
+    den = y0 - 2 * y1 + y2
+    grid_max = y1 - 0.125 * (y0 - y2) ** 2 / den
+    grid_arg = dense[i] + 0.5 * dw * (y0 - y2) / den
+    np.testing.assert_allclose(pk.value, grid_max, rtol=1e-6)
+    np.testing.assert_allclose(w, grid_arg, rtol=1e-4)       # a flat maximum: ω* to ~dw^2
+    # no grid point lies above it (frequency_response's parabolic extremes are ~1e-7 high)
+    assert pk.value >= a.max() * (1 - 1e-6)
+    # the gradient against central differences of the exact peak itself
+    for name in ("k1", "c1"):
+        p = float(aj.get_param(system, name))
+        h = 1e-4 * p
+        up = aj.exact_peak(aj.replace_params(system, {name: p + h}), (25.0, 45.0),
+                           params=["k1", "c1"], **kw)
+        down = aj.exact_peak(aj.replace_params(system, {name: p - h}), (25.0, 45.0),
+                             params=["k1", "c1"], **kw)
+        fd = (up.value - down.value) / (2 * h)
+        np.testing.assert_allclose(pk.gradient[name], fd, rtol=1e-6, err_msg=name)
+
+
+def test_minimax_tuning_reaches_the_h_infinity_optimum():
+    """Both mass ratios in one process: one compilation."""
+    for mu, band in ((0.05, (70.0, 130.0)), (0.2, (60.0, 140.0))):
+        f_ref, z_ref, peak_ref = h_infinity(mu)
+        f_na, z_na = nishihara_asami(mu)
+        np.testing.assert_allclose((f_ref, z_ref), (f_na, z_na), rtol=1e-7)  # the references
+        # start 5 % off in frequency and with half the damping
+        system = tmd(mu, 1.05 * f_ref, 0.5 * z_ref)
+        tuned, hist = aj.tune(system, ["k1", "c1"], band, amplitude=1.0,
+                              objective="exact_peak", steps=40, n_freq=16, tol=1e-9,
+                              confirm=False)
+        m = mu * M
+        k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
+        f, z = np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m))
+        np.testing.assert_allclose(f, f_ref, rtol=1e-4, err_msg=f"frequency ratio, mu={mu}")
+        np.testing.assert_allclose(z, z_ref, rtol=1e-4, err_msg=f"damping ratio, mu={mu}")
+        np.testing.assert_allclose(min(hist["objective"]) * K, peak_ref, rtol=1e-4)
+        # the optimum has equal peaks
+        last = hist["peaks"][int(np.argmin(hist["objective"]))]
+        np.testing.assert_allclose(last[0], last[1], rtol=1e-4)
+        # the tuned design at its located peak frequencies, by the closed form
+        np.testing.assert_allclose(receptance(mu, f, z, hist["peak_omegas"][-1] / WN), peak_ref,
+                                   rtol=1e-4)
+        assert len(hist["objective"]) <= 30                  # SLSQP: a few dozen solves at most
+
+
+def test_exact_peak_bad_input():
+    system = tmd(0.05, 1.0, 0.1)
+    with pytest.raises(ValueError, match="n_freq"):
+        aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, n_freq=2)
+    with pytest.raises(ValueError, match="peaks"):
+        aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, peaks=0)
+    with pytest.raises(ValueError, match="band"):
+        aj.exact_peak(system, (130.0, 70.0), amplitude=1.0)
+    with pytest.raises(ValueError, match="no parameter"):
+        aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, params=["k9"])
+    with pytest.raises(ValueError, match="exact_peak"):
+        aj.tune(system, ["k1"], (70.0, 70.0), amplitude=1.0, objective="exact_peak")
+
+
+def test_robust_objective_reports_the_coexisting_upper_branch():
+    """A hardening oscillator inside its hysteresis (1.1-1.2): shooting from the linear guess
+    follows the lower branch, so the plain exact peak is the linear response at the band edge;
+    the attractor maps find the upper branch, whose amplitude at 1.2 is the worst response.
+    Both against exact piecewise-linear references (reference_jumps)."""
+    from scipy.optimize import fsolve
+    from test_continuation import HARD, hardening
+
+    system = hardening()
+    r = aj.robust_peak(system, (1.1, 1.2), amplitude=HARD["F0"], params=["contact1.stiffness"],
+                       n_freq=8, probes=3, samples=12)
+    c, F0 = HARD["c"], HARD["F0"]
+    linear = F0 / abs(1 - 1.1**2 + 1j * c * 1.1)       # below the gap: the linear response
+    assert r.plain.omega == pytest.approx(1.1)
+    np.testing.assert_allclose(r.plain.value, linear, rtol=1e-6)
+    assert r.source == "coexisting" and r.omega == pytest.approx(1.2)
+
+    top = max(r.coexisting, key=lambda a: a.amplitude)
+    assert top.omega == pytest.approx(1.2) and top.period_multiple == 1 and top.stable
+
+    def upper(k_c):
+        """The exact fixed point of the piecewise-linear period map near the marched orbit."""
+        p = dict(c=c, F0=F0, k_c=k_c, g=HARD["g"])
+        x = fsolve(lambda x: rj.period_map(x, 1.2, **p) - x, top.state, xtol=1e-13)
+        return rj.amplitude(x, 1.2, **p)
+
+    np.testing.assert_allclose(r.value, upper(HARD["k_c"]), rtol=1e-6)
+    assert r.value > 5 * r.plain.value
+    h = 1e-4 * HARD["k_c"]
+    fd = (upper(HARD["k_c"] + h) - upper(HARD["k_c"] - h)) / (2 * h)
+    # measured 1.7e-4: the library's contact is smoothed at the gap (eps), the reference not
+    np.testing.assert_allclose(r.gradient["contact1.stiffness"], fd, rtol=1e-3)

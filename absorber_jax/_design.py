@@ -192,7 +192,7 @@ def _check(system, params, omegas, objective):
 def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, steps=100,
          n_freq=64, bounds=None, softness=2e-3, peaks=2, tol=1e-7, rtol=1e-10, atol=1e-10,
          newton_steps=40, solver=None, progress=False, confirm=True, confirm_points=12,
-         callback=None):
+         confirm_samples=8, stability_margin=None, starts=None, n_starts=3, callback=None):
     """Tune absorber parameters to minimise the primary's steady-state amplitude over a band.
 
     **Arguments**
@@ -215,8 +215,18 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
       ``bounds[name] = (lo, hi)`` otherwise.  With ``"exact_peak"`` an optax optimiser
       descends the largest slot instead of the minimax solve.
     - ``steps``: optimiser steps (SLSQP iterations for the minimax solve).
+    - ``stability_margin``: with ``"exact_peak"``, a design whose orbit at a located peak has
+      a Floquet multiplier of modulus above ``1 - stability_margin`` is infeasible: the
+      minimax line search backs off from it and it is never returned (``history["unstable"]``
+      counts them).
+    - ``starts``: global starts, ``{name: values}`` for some or all tuned parameters: the
+      grid of their combinations (the others at the starting design) is evaluated on the
+      band's grid in one vmapped call per design chunk, the ``n_starts`` best designs are each
+      tuned, and the best result is returned (``history["starts"]`` holds the grid).
     - ``progress``: tqdm bar; ``confirm``: re-check the curves before and after with marching
-      (an independent method) on ``confirm_points`` frequencies.
+      (an independent method) on ``confirm_points`` frequencies, and march from
+      ``confirm_samples`` initial states at the tuned design's peak frequency: the responses
+      the structure settles on there (``history["settles_on"]``).
 
     **Returns** ``(tuned_system, history)``; ``history`` holds per evaluation ``objective``,
     ``params`` (dict of lists), ``grad_norm``, ``failed`` (frequencies that did not converge),
@@ -234,6 +244,18 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     require_x64("tune")
     import optax
 
+    if starts is not None:
+        return _tune_from_starts(system, params, band, starts, n_starts, progress, dict(
+            amplitude=amplitude, objective=objective, optimizer=optimizer, steps=steps,
+            n_freq=n_freq, bounds=bounds, softness=softness, peaks=peaks, tol=tol, rtol=rtol,
+            atol=atol, newton_steps=newton_steps, solver=solver, confirm=confirm,
+            confirm_points=confirm_points, confirm_samples=confirm_samples,
+            stability_margin=stability_margin, callback=callback))
+    if stability_margin is not None:
+        check_scalar("tune", "stability_margin", stability_margin, lo=0.0, hi=1.0, hi_open=True)
+        if objective != "exact_peak":
+            raise ValueError("tune.stability_margin needs objective='exact_peak' (the margin is "
+                             "checked on the orbits at the located peaks)")
     lo, hi = band
     check_scalar("tune", "band[0]", lo, lo=0.0, lo_open=True)
     check_scalar("tune", "band[1]", hi, lo=float(lo))
@@ -268,11 +290,11 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
                       rtol, atol)
     u0 = reparam.inverse(jnp.asarray(p0))
     evaluate = _Evaluator(system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
-                          objective, softness, peaks)
+                          objective, softness, peaks, stability_margin, solver, rtol, atol)
     hist = {"objective": [], "params": {k: [] for k in names}, "grad_norm": [], "failed": [],
             "nonsmooth": [], "seconds": [], "peak_bias": []}
     if exact:
-        hist.update(peaks=[], peak_omegas=[])
+        hist.update(peaks=[], peak_omegas=[], unstable=0)
     if exact and optimizer is None:
         u_best = _minimax(evaluate, u0, steps, hist, progress, callback)
     else:
@@ -301,6 +323,77 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
                            "status_before": before.status, "status_after": after_m.status,
                            "period_before": before.period_multiple,
                            "period_after": after_m.period_multiple}
+        a = np.where(np.asarray(after.ok), np.asarray(after.amplitude), -np.inf)
+        w_pk, designed = ((float(omegas[int(np.argmax(a))]), float(np.max(a)))
+                          if np.isfinite(a).any() else (math.nan, math.nan))
+        if exact and hist["feasible"]:
+            i = int(np.nanargmin(hist["objective"]))
+            j = int(np.argmax(hist["peaks"][i]))
+            w_pk, designed = float(hist["peak_omegas"][i][j]), float(hist["peaks"][i][j])
+        hist["settles_on"] = _settles_on(tuned, w_pk, designed, amplitude, confirm_samples,
+                                         solver, rtol, atol)
+    return tuned, hist
+
+
+def _settles_on(tuned, omega, designed, amplitude, samples, solver, rtol, atol):
+    """March the tuned design from ``samples`` initial states at its peak frequency: the
+    responses it settles on, and whether the largest stable one is the designed orbit."""
+    from ._attractors import attractors
+
+    if not np.isfinite(omega):
+        return {"omega": math.nan, "attractors": [], "designed": math.nan,
+                "worst_stable": math.nan, "is_designed": False}
+    amap = attractors(tuned, Harmonic(amplitude=float(amplitude), omega=float(omega)),
+                      samples=samples, solver=solver, rtol=rtol, atol=atol)
+    stable = [x.amplitude for x in amap.attractors if x.periodic and x.stable]
+    worst = float(max(stable)) if stable else math.nan
+    return {"omega": float(omega), "attractors": [x.summary() for x in amap.attractors],
+            "designed": designed, "worst_stable": worst,
+            "is_designed": bool(stable) and abs(worst - designed) <= 1e-3 * abs(designed)}
+
+
+def _tune_from_starts(system, params, band, starts, n_starts, progress, kw):
+    """Global starts: the grid of ``starts`` evaluated in vmapped calls, the best
+    ``n_starts`` designs tuned, the best result returned."""
+    import itertools
+
+    from ._sweep import frequency_response
+
+    names = tuple(params)
+    if not isinstance(starts, dict) or not starts:
+        raise ValueError("tune.starts must be a dict {parameter: values}, e.g. "
+                         "{'gap': [1e-3, 2e-3], 'c1': [1.0, 10.0]}")
+    for k, v in starts.items():
+        if k not in names:
+            raise ValueError(f"starts given for {k!r}, which is not tuned ({names})")
+        if np.asarray(v, dtype=float).ndim != 1 or len(v) == 0:
+            raise ValueError(f"starts[{k!r}] must be a non-empty list of values")
+    if not isinstance(n_starts, int) or n_starts < 1:
+        raise ValueError(f"tune.n_starts must be a positive integer, got {n_starts!r}")
+    keys = list(starts)
+    combos = [dict(zip(keys, c)) for c in itertools.product(*(starts[k] for k in keys))]
+    lo, hi = band
+    omegas = np.linspace(lo, hi, kw["n_freq"])
+    grid = {k: np.array([c[k] for c in combos], dtype=float) for k in keys}
+    fr = frequency_response(system, omegas, amplitude=float(kw["amplitude"]), params=grid,
+                            tol=kw["tol"], rtol=kw["rtol"], atol=kw["atol"],
+                            newton_steps=kw["newton_steps"], solver=kw["solver"], floquet=False,
+                            progress=progress)
+    amp = np.where(np.asarray(fr.ok), np.asarray(fr.amplitude), np.inf)
+    peak = np.max(amp, axis=-1).reshape(len(combos))
+    order = [int(i) for i in np.argsort(peak) if np.isfinite(peak[i])][:n_starts]
+    if not order:
+        raise ValueError("tune: no design of the starts grid converged at every frequency")
+    best = None
+    for i in order:
+        start = replace_params(system, combos[i], check=True)
+        tuned, hist = tune(start, params, band, progress=progress, **kw)
+        val = np.nanmin(hist["objective"])
+        if best is None or val < best[0]:
+            best = (val, tuned, hist)
+    _, tuned, hist = best
+    hist["starts"] = {"designs": combos, "grid_peak": peak, "tuned_from": [combos[i]
+                                                                           for i in order]}
     return tuned, hist
 
 
@@ -310,8 +403,9 @@ class _Evaluator:
     frequencies by marching, and one history record per evaluation."""
 
     def __init__(self, system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
-                 objective, softness, peaks):
+                 objective, softness, peaks, margin=None, solver=None, rtol=1e-10, atol=1e-10):
         self.args = (system, names, reparam)
+        self.margin, self.integrator = margin, dict(solver=solver, rtol=rtol, atol=atol)
         self.omegas, self.amplitude, self.cfg = omegas, amplitude, cfg
         self.tol, self.newton_steps = tol, newton_steps
         self.objective, self.softness, self.peaks = objective, softness, peaks
@@ -336,6 +430,26 @@ class _Evaluator:
         return ((float(val), np.asarray(g)), np.asarray(amps), np.asarray(states),
                 np.asarray(status))
 
+    def _unstable(self, u, res, ok):
+        """Slots whose orbit has a multiplier beyond ``1 - margin``."""
+        from ._steady import steady_state
+
+        system, names, reparam = self.args
+        sysp = replace_params(system, dict(zip(names, np.asarray(reparam.forward(u)))),
+                              check=False)
+        out = np.zeros(len(ok), bool)
+        for j in np.flatnonzero(ok):
+            ss = steady_state(sysp, Harmonic(amplitude=self.amplitude,
+                                             omega=float(res["omegas"][j])),
+                              guess=np.asarray(sysp.to_public(jnp.asarray(res["states"][j]))),
+                              tol=self.tol, retry=False, **self.integrator)
+            mult = np.asarray(ss.multipliers)
+            # a floating absorber's structural multiplier 1 (already set aside by the
+            # stability label) carries no margin
+            mu = np.abs(mult[np.abs(mult - 1.0) > 1e-3])
+            out[j] = not (bool(ss.stable) and np.all(mu <= 1.0 - self.margin))
+        return out
+
     def __call__(self, u, hist):
         """``(values, jacobian, ok)``: per slot for "exact_peak" (values (K,), jacobian (K, P)),
         else the objective as one slot.  Cached by ``u``."""
@@ -356,9 +470,17 @@ class _Evaluator:
         if self.amps_before is None:
             self.amps_before = amps
         self.guesses = jnp.where(jnp.asarray(grid_ok)[:, None], states, jnp.nan)
+        unstable = None
         if self.objective == "exact_peak":
             ok = res["status"] == Status.SUCCESS
             vals, jac = res["amplitudes"], res["jac"]
+            if self.margin is not None:
+                unstable = self._unstable(u, res, ok)
+                hist["unstable"] += int(unstable.any())
+                # an infeasible design: far above every feasible one, so that the line
+                # search backs off, and never the best
+                vals = np.where(unstable, 10.0 * np.max(np.abs(vals)), vals)
+                jac = np.where(unstable[:, None], 0.0, jac)
             val = float(np.max(vals[ok])) if ok.any() else math.nan
             g = jac[int(np.argmax(np.where(ok, vals, -np.inf)))] if ok.any() else jac[0] * np.nan
             hist["peaks"].append(vals.copy())
@@ -381,7 +503,9 @@ class _Evaluator:
         hist["peak_bias"].append(bias)
         hist["seconds"].append(time.perf_counter() - t)
         self.prev_status = status
-        out = (vals, jac, ok & grid_ok.all(), val, g, dict(zip(names, p)))
+        feasible = not (self.objective == "exact_peak" and self.margin is not None
+                        and bool(unstable.any()))
+        out = (vals, jac, ok & grid_ok.all(), val, g, dict(zip(names, p)), feasible)
         self.cache = {key: out}
         return out
 
@@ -395,8 +519,8 @@ def _descend(evaluate, optimizer, u, steps, hist, progress, callback):
     best = (np.inf, u)
     bar = tqdm(range(steps + 1), desc="tune", disable=not progress)
     for it in bar:
-        _, _, ok, val, g, p = evaluate(u, hist)
-        if ok.all() and val < best[0]:
+        _, _, ok, val, g, p, feasible = evaluate(u, hist)
+        if ok.all() and feasible and val < best[0]:
             best = (val, u)
         bar.set_postfix(objective=f"{val:.4g}", **{k: f"{v:.4g}" for k, v in p.items()})
         if callback is not None:
@@ -405,6 +529,7 @@ def _descend(evaluate, optimizer, u, steps, hist, progress, callback):
             break
         updates, opt_state = optimizer.update(jnp.asarray(g), opt_state, u)
         u = u + updates
+    hist["feasible"] = bool(np.isfinite(best[0]))
     return best[1]
 
 
@@ -421,18 +546,18 @@ def _minimax(evaluate, u0, steps, hist, progress, callback):
     from tqdm.auto import tqdm
 
     u0 = np.asarray(u0, dtype=float)
-    vals0, _, ok0, val0, _, _ = evaluate(u0, hist)
+    vals0, _, ok0, val0, _, _, feas0 = evaluate(u0, hist)
     if not ok0.any():
         raise ValueError("tune: the starting design's peak could not be computed "
                          "(no slot converged); check the band and the design")
     scale = float(val0)
-    best = [val0 if ok0.all() else np.inf, u0]
+    best = [val0 if ok0.all() and feas0 else np.inf, u0]
     bar = tqdm(total=steps, desc="tune (minimax)", disable=not progress)
 
     def slots(x):
         u = x[:-1]
-        vals, jac, ok, val, _, p = evaluate(u, hist)
-        if ok.all() and val < best[0]:
+        vals, jac, ok, val, _, p, feasible = evaluate(u, hist)
+        if ok.all() and feasible and val < best[0]:
             best[0], best[1] = val, np.array(u)
         fill = np.max(vals[ok]) if ok.any() else 10.0 * scale
         return np.where(ok, vals, fill) / scale, np.where(ok[:, None], jac, 0.0) / scale
@@ -440,7 +565,7 @@ def _minimax(evaluate, u0, steps, hist, progress, callback):
     def step_done(x):
         bar.update(1)
         if callback is not None:
-            _, _, _, val, _, p = evaluate(x[:-1], hist)
+            _, _, _, val, _, p, _ = evaluate(x[:-1], hist)
             callback(bar.n, val, p)
 
     n = u0.size
@@ -454,6 +579,7 @@ def _minimax(evaluate, u0, steps, hist, progress, callback):
                  method="SLSQP", callback=step_done,
                  options=dict(maxiter=steps, ftol=1e-12))
     bar.close()
+    hist["feasible"] = bool(np.isfinite(best[0]))
     return jnp.asarray(best[1])
 
 

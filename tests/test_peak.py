@@ -109,6 +109,30 @@ def test_minimax_tuning_reaches_the_h_infinity_optimum():
         np.testing.assert_allclose(receptance(mu, f, z, hist["peak_omegas"][-1] / WN), peak_ref,
                                    rtol=1e-4)
         assert len(hist["objective"]) <= 30                  # SLSQP: a few dozen solves at most
+    # global starts from a badly detuned design, under a stability margin, confirmed by
+    # marching from several initial states at the located peak
+    f_ref, z_ref, peak_ref = h_infinity(0.05)
+    starts = {"k1": [300.0, 450.0, 600.0], "c1": [0.3, 1.0, 3.0]}
+    tuned, hist = aj.tune(tmd(0.05, 1.3, 0.03), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
+                          objective="exact_peak", steps=30, n_freq=16, tol=1e-9, starts=starts,
+                          n_starts=2, stability_margin=0.01, confirm_points=4)
+    grid = hist["starts"]["grid_peak"]
+    designs = hist["starts"]["designs"]
+    assert hist["starts"]["tuned_from"] == [designs[i] for i in np.argsort(grid)[:2]]
+    assert min(hist["objective"]) <= grid.min()
+    m = 0.05 * M
+    k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
+    np.testing.assert_allclose(np.sqrt(k1 / m) / WN, f_ref, rtol=1e-4)
+    np.testing.assert_allclose(c1 / (2 * np.sqrt(k1 * m)), z_ref, rtol=1e-4)
+    assert hist["feasible"] and hist["unstable"] == 0
+    settle = hist["settles_on"]
+    assert settle["is_designed"]
+    np.testing.assert_allclose(settle["worst_stable"] * K, peak_ref, rtol=1e-3)
+    # a margin no design meets: nothing is feasible, and the history says so
+    _, hist = aj.tune(tmd(0.05, 1.0, 0.1), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
+                      objective="exact_peak", steps=3, n_freq=16, tol=1e-9,
+                      stability_margin=0.999, confirm=False)
+    assert not hist["feasible"] and hist["unstable"] >= 1
 
 
 def test_exact_peak_bad_input():

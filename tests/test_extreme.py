@@ -65,7 +65,11 @@ def _finite_or_flagged(status, *values):
     return aj.describe(status)
 
 
-@pytest.mark.parametrize("name", list(CASES))
+SLOW_CASES = ("absorber_mass_1e-6",)  # CI time
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_CASES
+                                  else n for n in CASES])
 def test_extreme_case(name):
     system, F0, omega, grad_param = CASES[name]
     forcing = aj.Harmonic(amplitude=F0, omega=omega)

@@ -161,7 +161,7 @@ def test_den_hartog_at_the_defaults(ratio):
     assert abs(exact - P / abs(k - m * omega**2)) / exact > 0.01  # friction matters here
 
 
-@pytest.mark.parametrize("law", ["coulomb", "stribeck"])
+@pytest.mark.parametrize("law", ["coulomb", pytest.param("stribeck", marks=pytest.mark.slow)])
 def test_homogeneity_over_six_decades_at_the_defaults(law):
     # scaling F0 and N (and v_s) by s scales the whole response by s
     amps = []

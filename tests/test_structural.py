@@ -49,6 +49,7 @@ def test_nlvib_example_03_matches_the_event_exact_reference_both_ways():
     assert labels > 30
 
 
+@pytest.mark.slow  # CI time; the structure layer is checked on every element by the energy test
 def test_two_mass_systems_are_special_cases():
     """ImpactAbsorber / FrictionAbsorber = a one-DOF structure + ImpactDamper /
     FrictionDamper: the same state scales, vector fields, orbits and amplitudes (1e-10).
@@ -141,6 +142,7 @@ def _beam_with_tip_damper(N, law=None):
     return aj.StructuralSystem(modal, [fd], load="w8"), modal, (m, k), w1
 
 
+@pytest.mark.slow  # CI time
 def test_beam_tip_friction_damper_limits_and_energy_balance():
     """N = 0: the linear absorber (k, c = 0) on the beam; N -> ∞: the damper mass stuck to
     the tip; both against the modal beam's closed-form receptance.  Between them (stick-slip

@@ -167,6 +167,8 @@ def cmd_tune(args):
             "omegas": c["omegas"].tolist(), "before_mm": (c["before"] * 1e3).tolist(),
             "after_mm": (c["after"] * 1e3).tolist(), "status_before": c["status_before"].tolist(),
             "status_after": c["status_after"].tolist()}
+    if "settles_on" in hist:
+        summary["settles_on"] = hist["settles_on"]
     with open(os.path.join(args.out, "tuning.json"), "w") as fh:
         json.dump(summary, fh, indent=2)
     print(json.dumps({k: summary[k] for k in ("tuned", "peak_before_mm", "peak_after_mm")}))
@@ -580,7 +582,8 @@ def build_parser():
     t.add_argument("--params", required=True, help="comma-separated, e.g. k1,c1,m")
     t.add_argument("--band", required=True, help="LO:HI [rad/s]")
     t.add_argument("--amplitude", type=float, default=None)
-    t.add_argument("--objective", default="peak", choices=["peak", "mean_square", "amplitude"])
+    t.add_argument("--objective", default="peak",
+                   choices=["peak", "exact_peak", "mean_square", "amplitude"])
     t.add_argument("--steps", type=int, default=40)
     t.add_argument("--n-freq", type=int, default=32)
     t.add_argument("--set", action="append", metavar="field=value")

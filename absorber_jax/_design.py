@@ -349,7 +349,7 @@ def _settles_on(tuned, omega, designed, amplitude, samples, solver, rtol, atol):
     worst = float(max(stable)) if stable else math.nan
     return {"omega": float(omega), "attractors": [x.summary() for x in amap.attractors],
             "designed": designed, "worst_stable": worst,
-            "is_designed": bool(stable) and abs(worst - designed) <= 1e-3 * abs(designed)}
+            "is_designed": bool(stable) and bool(abs(worst - designed) <= 1e-3 * abs(designed))}
 
 
 def _tune_from_starts(system, params, band, starts, n_starts, progress, kw):

@@ -99,15 +99,21 @@ def _half_p2p(y):
     return 0.5 * (_parabolic_peak(y, jnp.argmax(y)) - _parabolic_peak(y, jnp.argmin(y)))
 
 
-def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
-    """Amplitudes over one response period ``nT`` starting from scaled state ``x0``
-    (``n`` may be traced; ``n_cap`` is its static upper bound)."""
+def sample_orbit(system, forcing, x0, n, cfg, n_cap=1):
+    """Internal states ``s`` at ``SAMPLES_PER_PERIOD · n_cap`` uniform times ``ts`` over one
+    response period ``nT`` from scaled state ``x0``, and the integrator's status."""
     scale = state_scale(system, forcing)
     T = 2 * jnp.pi / forcing.omega
     N = SAMPLES_PER_PERIOD * n_cap
     ts = jnp.arange(N) * (n * T / N)
     ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg.over_periods(n_cap))
-    s = ys * scale
+    return ys * scale, ts, st
+
+
+def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
+    """Amplitudes over one response period ``nT`` starting from scaled state ``x0``
+    (``n`` may be traced; ``n_cap`` is its static upper bound)."""
+    s, ts, st = sample_orbit(system, forcing, x0, n, cfg, n_cap)
     phase = jnp.exp(-1j * forcing.omega * ts)
 
     def stats_of(y):

@@ -33,9 +33,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._flow import _flow, state_scale
+from ._flow import state_scale
 from ._forcing import Harmonic
-from ._orbit import SAMPLES_PER_PERIOD
+from ._orbit import sample_orbit
 from ._shooting import Shooting
 from ._status import Status
 from ._steady import solve_point
@@ -80,12 +80,7 @@ def _extreme(y, d, c, h):
 def refined_amplitude(system, forcing, x, cfg, n=1):
     """Half peak-to-peak of ``system.observable`` over the period-``n`` orbit from the scaled
     state ``x``, its extremes located between samples (module docstring, step 3)."""
-    scale = state_scale(system, forcing)
-    T = 2 * jnp.pi / forcing.omega
-    N = SAMPLES_PER_PERIOD * n
-    ts = jnp.arange(N) * (n * T / N)
-    ys, status = _flow((system, forcing), x, n * T, ts, cfg=cfg.over_periods(n))
-    s = ys * scale
+    s, ts, status = sample_orbit(system, forcing, x, n, cfg, n)
 
     def derivatives(t, si):
         def rate_of_obs(t_, s_):
@@ -96,7 +91,7 @@ def refined_amplitude(system, forcing, x, cfg, n=1):
         return y, d, c
 
     y, d, c = jax.vmap(derivatives)(ts, s)
-    h = n * T / N
+    h = ts[1] - ts[0]
     amp = 0.5 * (_extreme(y, d, c, h) + _extreme(-y, -d, -c, h))
     return amp, status
 

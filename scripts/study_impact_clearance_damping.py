@@ -1,7 +1,8 @@
 """Design study: the optimal clearance and contact damping of the Table 1 impact absorber.
 
-A (gap × c1) grid of band peaks, every design × frequency point in vmapped calls, with the
-gradient-tuned optimum from the Table 1 design marked on it.
+A (gap × c1) grid of band peaks, every design × frequency point in vmapped calls, then the
+best few grid designs tuned on the exact band peak (``tune(..., objective="exact_peak",
+starts=grid)``: the minimax solve on the located peaks), the optimum marked on the grid.
 
     python scripts/study_impact_clearance_damping.py [--out studies] [--quick]
 """
@@ -23,13 +24,15 @@ def main(out, quick):
     gaps = np.geomspace(1e-4, 3e-3, 5 if quick else 12)
     c1s = np.geomspace(2.0, 80.0, 5 if quick else 12)
     G, C = np.meshgrid(gaps, c1s, indexing="ij")
-    grid = aj.frequency_response(system, om, amplitude=2.0,
-                                 params={"gap": G.ravel(), "c1": C.ravel()}, progress=True)
-    ok = np.all(grid.status == 0, axis=1)
-    peaks = np.where(ok, grid.amplitude.max(axis=1), np.nan).reshape(G.shape)
-    tuned, hist = aj.tune(system, ["gap", "c1"], band, amplitude=2.0, steps=8 if quick else 30,
-                          n_freq=len(om), bounds={"gap": (5e-5, 5e-3), "c1": (0.5, 200.0)},
+    # the grid is the global starts' grid: evaluated once, in vmapped calls, inside tune
+    tuned, hist = aj.tune(system, ["gap", "c1"], band, amplitude=2.0, objective="exact_peak",
+                          steps=6 if quick else 30, n_freq=len(om),
+                          bounds={"gap": (5e-5, 5e-3), "c1": (0.5, 200.0)},
+                          starts={"gap": gaps, "c1": c1s}, n_starts=1 if quick else 3,
                           progress=True, confirm=not quick, confirm_points=8)
+    peaks = np.asarray(hist["starts"]["grid_peak"]).reshape(G.shape)
+    ok = np.isfinite(peaks)
+    peaks = np.where(ok, peaks, np.nan)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -39,16 +42,21 @@ def main(out, quick):
     cs = ax.contourf(gaps * 1e3, c1s, peaks.T * 1e3, levels=20, cmap="viridis")
     fig.colorbar(cs, label="band peak of x1 [mm]")
     ax.plot(np.array(hist["params"]["gap"]) * 1e3, hist["params"]["c1"], "w.-", lw=0.8,
-            label="gradient descent")
+            label="minimax (SLSQP) from the best start")
     ax.plot(hist["best"]["gap"] * 1e3, hist["best"]["c1"], "r*", ms=12, label="tuned")
     ax.set(xscale="log", yscale="log", xlabel="clearance d [mm]",
            ylabel="contact damping c1 [N s/m]", title="Table 1 impact absorber, 25–45 rad/s")
     ax.legend()
     fig.tight_layout()
     fig.savefig(os.path.join(out, "impact_clearance_damping.png"), dpi=110)
-    res = {"tuned": hist["best"], "peak_before_mm": float(hist["amplitude_before"].max() * 1e3),
-           "peak_after_mm": float(hist["amplitude_after"].max() * 1e3),
-           "grid_best_mm": float(np.nanmin(peaks) * 1e3), "grid_failed_designs": int((~ok).sum())}
+    res = {"tuned": hist["best"], "tuned_from": hist["starts"]["tuned_from"],
+           "exact_peak_after_mm": float(np.nanmin(hist["objective"]) * 1e3),
+           "grid_peak_after_mm": float(hist["amplitude_after"].max() * 1e3),
+           "grid_best_mm": float(np.nanmin(peaks) * 1e3), "grid_failed_designs": int((~ok).sum()),
+           "evaluations": len(hist["objective"]), "settles_on": hist.get("settles_on")}
+    # the Table 1 design's own exact peak (the same compiled solve as the tuning's)
+    res["table1_exact_peak_mm"] = aj.exact_peak(system, band, amplitude=2.0,
+                                                n_freq=len(om)).value * 1e3
     with open(os.path.join(out, "impact_clearance_damping.json"), "w") as fh:
         json.dump(res, fh, indent=2)
     print(json.dumps(res))

@@ -45,7 +45,7 @@ LOCATED, EDGE, FILLER, UNBRACKETED = 0, 1, 2, 3
 KIND_NAMES = {LOCATED: "located", EDGE: "band edge", FILLER: "grid point",
               UNBRACKETED: "not bracketed"}
 
-# quintic Hermite on [0, 1]: coefficients a3..a5 from the end conditions (see _hermite_extreme)
+# quintic Hermite on [0, 1]: coefficients a3..a5 from the end conditions (see _hermite_max)
 _H = np.linalg.inv(np.array([[1.0, 1.0, 1.0], [3.0, 4.0, 5.0], [6.0, 12.0, 20.0]]))
 
 

@@ -158,6 +158,7 @@ def test_nlvib03_bifurcations_match_the_exact_continuation(nlvib_branch):
     assert abs(q2.max() - ex["peak_Q2"]) < 2e-3 * ex["peak_Q2"]
 
 
+@pytest.mark.slow  # CI time (the bifurcations of the same branch are asserted in CI)
 def test_period_doubling_branch_switching(nlvib_branch):
     """At the flip of NLvib 03 the period-2 branch is reached by branch switching; it spans
     the flip window and rejoins the period-1 branch at the other flip; at a point inside,

@@ -21,35 +21,6 @@ def tmd(mu, f, zeta):
     return aj.ImpactAbsorber(M=M, k=K, c=0.0, m=m, gap=0.0, contact=law)
 
 
-def test_exact_peaks_and_gradients_match_the_closed_form():
-    mu, f, zeta = 0.05, 0.95, 0.1
-    system = tmd(mu, f, zeta)
-    pk = aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, params=["k1", "c1"], n_freq=16,
-                       **TIGHT)
-    assert np.all(pk.ok) and np.all(pk.located)
-    ref = peaks(mu, f, zeta)
-    assert len(ref) == 2
-    for j, (r, h) in enumerate(ref):
-        np.testing.assert_allclose(pk.omegas[j], r * WN, rtol=1e-8)
-        np.testing.assert_allclose(pk.amplitudes[j] * K, h, rtol=1e-8)
-    assert pk.value == pytest.approx(max(h for _, h in ref) / K, rel=1e-8)
-    # the envelope-theorem gradient against central differences of the closed-form peaks
-    ka, ca = float(aj.get_param(system, "k1")), float(aj.get_param(system, "c1"))
-    m = mu * M
-
-    def closed_peaks(k1, c1):
-        fz = (np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m)))
-        return np.array([h for _, h in peaks(mu, *fz)]) / K
-
-    for name, p in (("k1", ka), ("c1", ca)):
-        h = 1e-5 * p
-        args_p = (ka + h, ca) if name == "k1" else (ka, ca + h)
-        args_m = (ka - h, ca) if name == "k1" else (ka, ca - h)
-        fd = (closed_peaks(*args_p) - closed_peaks(*args_m)) / (2 * h)
-        np.testing.assert_allclose(pk.gradients[name], fd, rtol=1e-6, err_msg=name)
-    assert pk.gradient["k1"] == pk.gradients["k1"][pk.index]
-
-
 def test_exact_peak_of_an_impact_absorber_matches_a_dense_grid_and_central_differences():
     system, _ = aj.presets.impact("kelvin_voigt")
     kw = dict(amplitude=2.0, n_freq=16, **TIGHT)
@@ -85,8 +56,39 @@ def test_exact_peak_of_an_impact_absorber_matches_a_dense_grid_and_central_diffe
         np.testing.assert_allclose(pk.gradient[name], fd, rtol=1e-6, err_msg=name)
 
 
-def test_minimax_tuning_reaches_the_h_infinity_optimum():
-    """Both mass ratios in one process: one compilation."""
+def _check_peaks_and_gradients_against_the_closed_form():
+    mu, f, zeta = 0.05, 0.95, 0.1
+    system = tmd(mu, f, zeta)
+    pk = aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, params=["k1", "c1"], n_freq=16,
+                       **TIGHT)
+    assert np.all(pk.ok) and np.all(pk.located)
+    ref = peaks(mu, f, zeta)
+    assert len(ref) == 2
+    for j, (r, h) in enumerate(ref):
+        np.testing.assert_allclose(pk.omegas[j], r * WN, rtol=1e-8)
+        np.testing.assert_allclose(pk.amplitudes[j] * K, h, rtol=1e-8)
+    assert pk.value == pytest.approx(max(h for _, h in ref) / K, rel=1e-8)
+    # the envelope-theorem gradient against central differences of the closed-form peaks
+    ka, ca = float(aj.get_param(system, "k1")), float(aj.get_param(system, "c1"))
+    m = mu * M
+
+    def closed_peaks(k1, c1):
+        fz = (np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m)))
+        return np.array([h for _, h in peaks(mu, *fz)]) / K
+
+    for name, p in (("k1", ka), ("c1", ca)):
+        h = 1e-5 * p
+        args_p = (ka + h, ca) if name == "k1" else (ka, ca + h)
+        args_m = (ka - h, ca) if name == "k1" else (ka, ca - h)
+        fd = (closed_peaks(*args_p) - closed_peaks(*args_m)) / (2 * h)
+        np.testing.assert_allclose(pk.gradients[name], fd, rtol=1e-6, err_msg=name)
+    assert pk.gradient["k1"] == pk.gradients["k1"][pk.index]
+
+
+def test_exact_peak_and_minimax_tuning_on_the_tmd():
+    """The located peaks and their gradients against the closed form, then the minimax tuning
+    to the H-infinity optimum for both mass ratios: one process, one compilation."""
+    _check_peaks_and_gradients_against_the_closed_form()
     for mu, band in ((0.05, (70.0, 130.0)), (0.2, (60.0, 140.0))):
         f_ref, z_ref, peak_ref = h_infinity(mu)
         f_na, z_na = nishihara_asami(mu)
@@ -94,8 +96,8 @@ def test_minimax_tuning_reaches_the_h_infinity_optimum():
         # start 5 % off in frequency and with half the damping
         system = tmd(mu, 1.05 * f_ref, 0.5 * z_ref)
         tuned, hist = aj.tune(system, ["k1", "c1"], band, amplitude=1.0,
-                              objective="exact_peak", steps=40, n_freq=16, tol=1e-9,
-                              confirm=False)
+                              objective="exact_peak", steps=40, n_freq=16, confirm=False,
+                              **TIGHT)
         m = mu * M
         k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
         f, z = np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m))
@@ -109,30 +111,7 @@ def test_minimax_tuning_reaches_the_h_infinity_optimum():
         np.testing.assert_allclose(receptance(mu, f, z, hist["peak_omegas"][-1] / WN), peak_ref,
                                    rtol=1e-4)
         assert len(hist["objective"]) <= 30                  # SLSQP: a few dozen solves at most
-    # global starts from a badly detuned design, under a stability margin, confirmed by
-    # marching from several initial states at the located peak
-    f_ref, z_ref, peak_ref = h_infinity(0.05)
-    starts = {"k1": [300.0, 450.0, 600.0], "c1": [0.3, 1.0, 3.0]}
-    tuned, hist = aj.tune(tmd(0.05, 1.3, 0.03), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
-                          objective="exact_peak", steps=30, n_freq=16, tol=1e-9, starts=starts,
-                          n_starts=2, stability_margin=0.01, confirm_points=4)
-    grid = hist["starts"]["grid_peak"]
-    designs = hist["starts"]["designs"]
-    assert hist["starts"]["tuned_from"] == [designs[i] for i in np.argsort(grid)[:2]]
-    assert min(hist["objective"]) <= grid.min()
-    m = 0.05 * M
-    k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
-    np.testing.assert_allclose(np.sqrt(k1 / m) / WN, f_ref, rtol=1e-4)
-    np.testing.assert_allclose(c1 / (2 * np.sqrt(k1 * m)), z_ref, rtol=1e-4)
-    assert hist["feasible"] and hist["unstable"] == 0
-    settle = hist["settles_on"]
-    assert settle["is_designed"]
-    np.testing.assert_allclose(settle["worst_stable"] * K, peak_ref, rtol=1e-3)
-    # a margin no design meets: nothing is feasible, and the history says so
-    _, hist = aj.tune(tmd(0.05, 1.0, 0.1), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
-                      objective="exact_peak", steps=3, n_freq=16, tol=1e-9,
-                      stability_margin=0.999, confirm=False)
-    assert not hist["feasible"] and hist["unstable"] >= 1
+
 
 
 def test_exact_peak_bad_input():
@@ -181,3 +160,31 @@ def test_robust_objective_reports_the_coexisting_upper_branch():
     fd = (upper(HARD["k_c"] + h) - upper(HARD["k_c"] - h)) / (2 * h)
     # measured 1.7e-4: the library's contact is smoothed at the gap (eps), the reference not
     np.testing.assert_allclose(r.gradient["contact1.stiffness"], fd, rtol=1e-3)
+
+
+@pytest.mark.slow  # CI time: three more compilations (the design grid, attractors, Floquet)
+def test_global_starts_stability_margin_and_settling():
+    """Global starts from a badly detuned design, under a stability margin, confirmed by
+    marching from several initial states at the located peak."""
+    f_ref, z_ref, peak_ref = h_infinity(0.05)
+    starts = {"k1": [300.0, 450.0, 600.0], "c1": [0.3, 1.0, 3.0]}
+    tuned, hist = aj.tune(tmd(0.05, 1.3, 0.03), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
+                          objective="exact_peak", steps=30, n_freq=16, tol=1e-9, starts=starts,
+                          n_starts=2, stability_margin=0.01, confirm_points=4)
+    grid = hist["starts"]["grid_peak"]
+    designs = hist["starts"]["designs"]
+    assert hist["starts"]["tuned_from"] == [designs[i] for i in np.argsort(grid)[:2]]
+    assert min(hist["objective"]) <= grid.min()
+    m = 0.05 * M
+    k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
+    np.testing.assert_allclose(np.sqrt(k1 / m) / WN, f_ref, rtol=1e-4)
+    np.testing.assert_allclose(c1 / (2 * np.sqrt(k1 * m)), z_ref, rtol=1e-4)
+    assert hist["feasible"] and hist["unstable"] == 0
+    settle = hist["settles_on"]
+    assert settle["is_designed"]
+    np.testing.assert_allclose(settle["worst_stable"] * K, peak_ref, rtol=1e-3)
+    # a margin no design meets: nothing is feasible, and the history says so
+    _, hist = aj.tune(tmd(0.05, 1.0, 0.1), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
+                      objective="exact_peak", steps=3, n_freq=16, tol=1e-9,
+                      stability_margin=0.999, confirm=False)
+    assert not hist["feasible"] and hist["unstable"] >= 1

@@ -25,8 +25,10 @@ def _impact_scene():
 
 # (shooting without its march-then-shoot retry: the scene converges without it, and the
 # retry's branch would triple the compile time of each of the three transforms)
-@pytest.mark.parametrize("scene, method", [(_stick_slip_scene, aj.Shooting(retry=False)),
-                                           (_impact_scene, aj.Marching())])
+# CI time: the stick-slip case with -m slow (the impact case by marching runs in CI)
+@pytest.mark.parametrize("scene, method", [
+    pytest.param(_stick_slip_scene, aj.Shooting(retry=False), marks=pytest.mark.slow),
+    (_impact_scene, aj.Marching())])
 def test_reverse_mode_equals_forward_mode_and_central_differences(scene, method):
     system, forcing, where = scene()
     p0 = float(where(system))

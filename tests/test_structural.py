@@ -212,6 +212,7 @@ def test_bad_structural_input_raises_naming_the_field(build, field):
         build()
 
 
+@pytest.mark.slow  # CI time
 def test_three_tuned_mass_dampers_tuned_together_lower_the_top_floor_peak():
     """Six parameters (k, c of three dampers) at once: gradients of the band peak against
     central differences (1e-5), then ``tune`` lowers the top floor's band peak, confirmed on

@@ -472,10 +472,15 @@ class _Evaluator:
         self.guesses = jnp.where(jnp.asarray(grid_ok)[:, None], states, jnp.nan)
         unstable = None
         if self.objective == "exact_peak":
-            ok = res["status"] == Status.SUCCESS
-            vals, jac = res["amplitudes"], res["jac"]
+            # the located peaks, and every grid point as a constraint too (a lower bound of the
+            # peak): a peak that no slot tracks cannot rise unseen above the others
+            ok = np.concatenate([res["status"], status]) == Status.SUCCESS
+            vals = np.concatenate([res["amplitudes"], res["grid_amplitude"]])
+            jac = np.concatenate([res["jac"], res["grid_jac"]])
             if self.margin is not None:
-                unstable = self._unstable(u, res, ok)
+                K = len(res["amplitudes"])
+                unstable = np.concatenate([self._unstable(u, res, ok[:K]),
+                                           np.zeros(len(vals) - K, bool)])
                 hist["unstable"] += int(unstable.any())
                 # an infeasible design: far above every feasible one, so that the line
                 # search backs off, and never the best
@@ -483,7 +488,7 @@ class _Evaluator:
                 jac = np.where(unstable[:, None], 0.0, jac)
             val = float(np.max(vals[ok])) if ok.any() else math.nan
             g = jac[int(np.argmax(np.where(ok, vals, -np.inf)))] if ok.any() else jac[0] * np.nan
-            hist["peaks"].append(vals.copy())
+            hist["peaks"].append(vals[:self.peaks].copy())
             hist["peak_omegas"].append(res["omegas"].copy())
             bias = 0.0
         else:

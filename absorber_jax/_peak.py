@@ -128,9 +128,18 @@ def candidates(omegas, amps, slopes, ok, peaks):
     whose slope points out of the band; FILLER: a grid point) and grid index ``j``."""
     F = omegas.shape[0]
     a = jnp.where(ok, amps, -jnp.inf)
-    big = 2.0 * jnp.max(jnp.where(ok, jnp.abs(amps), 0.0)) + 1.0
+    big = 1e3 * (jnp.max(jnp.where(ok, jnp.abs(amps), 0.0)) + 1.0)
     bracket = ok[:-1] & ok[1:] & (slopes[:-1] > 0) & (slopes[1:] <= 0)
-    s_br = jnp.where(bracket, jnp.maximum(a[:-1], a[1:]) + big, -jnp.inf)
+    # a bracket's height estimated by the cubic through the values and slopes at its ends:
+    # a narrow peak between two low grid points still ranks by its own height
+    s_ = jnp.linspace(0.0, 1.0, 17)[:, None]
+    h = jnp.diff(omegas)
+    y0, y1 = jnp.where(ok, amps, 0.0)[:-1], jnp.where(ok, amps, 0.0)[1:]
+    d0, d1 = slopes[:-1] * h, slopes[1:] * h
+    cubic = ((2 * s_**3 - 3 * s_**2 + 1) * y0 + (s_**3 - 2 * s_**2 + s_) * d0
+             + (-2 * s_**3 + 3 * s_**2) * y1 + (s_**3 - s_**2) * d1)
+    height = jnp.maximum(jnp.max(cubic, axis=0), jnp.maximum(y0, y1))
+    s_br = jnp.where(bracket, height + big, -jnp.inf)
     s_lo = jnp.where(ok[0] & (slopes[0] <= 0), a[0] + big, -jnp.inf)
     s_hi = jnp.where(ok[-1] & (slopes[-1] >= 0), a[-1] + big, -jnp.inf)
     # a grid point already taken as a band-edge peak is no filler
@@ -269,7 +278,7 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
                               max_iter))(kind, j)
     return dict(omegas=w, amplitudes=a, kinds=kind, iterations=it, status=st, jac=g[:, 1:],
                 slopes=g[:, 0], states=x, grid_amplitude=amps, grid_states=states,
-                grid_status=status)
+                grid_status=status, grid_jac=grads[:, 1:])
 
 
 def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e-8,

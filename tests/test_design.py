@@ -141,6 +141,7 @@ def test_friction_normal_force_optimum_is_interior():
     assert peaks[N_opt] < 0.8 * peaks[500.0]  # stuck: a 1.2 kg mass on k1 with c1 only
 
 
+@pytest.mark.slow  # CI time (the exact-peak impact checks run in CI)
 def test_impact_tuning_lowers_band_peak_confirmed_by_marching():
     system, _ = aj.presets.impact("kelvin_voigt")
     tuned, hist = aj.tune(system, ["k1", "c1", "m"], (25.0, 45.0), amplitude=2.0, steps=12,

@@ -85,33 +85,35 @@ def _check_peaks_and_gradients_against_the_closed_form():
     assert pk.gradient["k1"] == pk.gradients["k1"][pk.index]
 
 
-def test_exact_peak_and_minimax_tuning_on_the_tmd():
+# CI time: mu = 0.2 with -m slow
+@pytest.mark.parametrize("mu, band", [(0.05, (70.0, 130.0)),
+                                      pytest.param(0.2, (60.0, 140.0), marks=pytest.mark.slow)])
+def test_exact_peak_and_minimax_tuning_on_the_tmd(mu, band):
     """The located peaks and their gradients against the closed form, then the minimax tuning
-    to the H-infinity optimum for both mass ratios: one process, one compilation."""
-    _check_peaks_and_gradients_against_the_closed_form()
-    for mu, band in ((0.05, (70.0, 130.0)), (0.2, (60.0, 140.0))):
-        f_ref, z_ref, peak_ref = h_infinity(mu)
-        f_na, z_na = nishihara_asami(mu)
-        np.testing.assert_allclose((f_ref, z_ref), (f_na, z_na), rtol=1e-7)  # the references
-        # start 5 % off in frequency and with half the damping
-        system = tmd(mu, 1.05 * f_ref, 0.5 * z_ref)
-        tuned, hist = aj.tune(system, ["k1", "c1"], band, amplitude=1.0,
-                              objective="exact_peak", steps=40, n_freq=16, confirm=False,
-                              **TIGHT)
-        m = mu * M
-        k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
-        f, z = np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m))
-        np.testing.assert_allclose(f, f_ref, rtol=1e-4, err_msg=f"frequency ratio, mu={mu}")
-        np.testing.assert_allclose(z, z_ref, rtol=1e-4, err_msg=f"damping ratio, mu={mu}")
-        np.testing.assert_allclose(min(hist["objective"]) * K, peak_ref, rtol=1e-4)
-        # the optimum has equal peaks
-        last = hist["peaks"][int(np.argmin(hist["objective"]))]
-        np.testing.assert_allclose(last[0], last[1], rtol=1e-4)
-        # the tuned design at its located peak frequencies, by the closed form
-        np.testing.assert_allclose(receptance(mu, f, z, hist["peak_omegas"][-1] / WN), peak_ref,
-                                   rtol=1e-4)
-        assert len(hist["objective"]) <= 30                  # SLSQP: a few dozen solves at most
-
+    to the H-infinity optimum (one process, one compilation)."""
+    if mu == 0.05:
+        _check_peaks_and_gradients_against_the_closed_form()
+    f_ref, z_ref, peak_ref = h_infinity(mu)
+    f_na, z_na = nishihara_asami(mu)
+    np.testing.assert_allclose((f_ref, z_ref), (f_na, z_na), rtol=1e-7)  # the references
+    # start 5 % off in frequency and with half the damping
+    system = tmd(mu, 1.05 * f_ref, 0.5 * z_ref)
+    tuned, hist = aj.tune(system, ["k1", "c1"], band, amplitude=1.0,
+                          objective="exact_peak", steps=40, n_freq=16, confirm=False,
+                          **TIGHT)
+    m = mu * M
+    k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
+    f, z = np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m))
+    np.testing.assert_allclose(f, f_ref, rtol=1e-4, err_msg=f"frequency ratio, mu={mu}")
+    np.testing.assert_allclose(z, z_ref, rtol=1e-4, err_msg=f"damping ratio, mu={mu}")
+    np.testing.assert_allclose(min(hist["objective"]) * K, peak_ref, rtol=1e-4)
+    # the optimum has equal peaks
+    last = hist["peaks"][int(np.argmin(hist["objective"]))]
+    np.testing.assert_allclose(last[0], last[1], rtol=1e-4)
+    # the tuned design at its located peak frequencies, by the closed form
+    np.testing.assert_allclose(receptance(mu, f, z, hist["peak_omegas"][-1] / WN), peak_ref,
+                               rtol=1e-4)
+    assert len(hist["objective"]) <= 30                  # SLSQP: a few dozen solves at most
 
 
 def test_exact_peak_bad_input():

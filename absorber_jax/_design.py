@@ -85,7 +85,9 @@ class Reparam(eqx.Module):
 def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
     """Steady primary amplitudes at ``omegas`` (vmapped shooting, differentiable in forward
     mode). ``guesses``: internal states (NaN: use the linear guess)."""
-    method = Shooting(tol=tol, newton_steps=newton_steps, retry=False)
+    from ._peak import shooting_for_design
+
+    method = shooting_for_design(tol, newton_steps)
 
     def one(w, g):
         forcing = Harmonic(amplitude=amplitude, omega=w)
@@ -315,24 +317,35 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     hist["stable_after"] = after.stable
     hist["best"] = {k: float(v) for k, v in zip(names, p_best)}
     if confirm:
-        om_c = np.linspace(omegas[0], omegas[-1], min(confirm_points, len(omegas)))
-        kw = dict(amplitude=float(amplitude), method="marching", max_periods=4000)
-        before = frequency_response(system, om_c, **kw)
-        after_m = frequency_response(tuned, om_c, **kw)
-        hist["confirm"] = {"omegas": om_c, "before": before.amplitude, "after": after_m.amplitude,
-                           "status_before": before.status, "status_after": after_m.status,
-                           "period_before": before.period_multiple,
-                           "period_after": after_m.period_multiple}
-        a = np.where(np.asarray(after.ok), np.asarray(after.amplitude), -np.inf)
-        w_pk, designed = ((float(omegas[int(np.argmax(a))]), float(np.max(a)))
-                          if np.isfinite(a).any() else (math.nan, math.nan))
-        if exact and hist["feasible"]:
-            i = int(np.nanargmin(hist["objective"]))
-            j = int(np.argmax(hist["peaks"][i]))
-            w_pk, designed = float(hist["peak_omegas"][i][j]), float(hist["peaks"][i][j])
-        hist["settles_on"] = _settles_on(tuned, w_pk, designed, amplitude, confirm_samples,
-                                         solver, rtol, atol)
+        _confirm(system, tuned, hist, amplitude, confirm_points, confirm_samples, solver, rtol,
+                 atol)
     return tuned, hist
+
+
+def _confirm(system, tuned, hist, amplitude, points, samples, solver, rtol, atol):
+    """The independent checks of a tuning: marching on ``points`` frequencies before and
+    after, and the responses the tuned design settles on at its peak frequency."""
+    from ._sweep import frequency_response
+
+    omegas = hist["omegas"]
+    om_c = np.linspace(omegas[0], omegas[-1], min(points, len(omegas)))
+    kw = dict(amplitude=float(amplitude), method="marching", max_periods=4000)
+    before = frequency_response(system, om_c, **kw)
+    after_m = frequency_response(tuned, om_c, **kw)
+    hist["confirm"] = {"omegas": om_c, "before": before.amplitude, "after": after_m.amplitude,
+                       "status_before": before.status, "status_after": after_m.status,
+                       "period_before": before.period_multiple,
+                       "period_after": after_m.period_multiple}
+    a = np.where(np.asarray(hist["status_after"]) == Status.SUCCESS,
+                 np.asarray(hist["amplitude_after"]), -np.inf)
+    w_pk, designed = ((float(omegas[int(np.argmax(a))]), float(np.max(a)))
+                      if np.isfinite(a).any() else (math.nan, math.nan))
+    if "peaks" in hist and hist["feasible"]:
+        i = int(np.nanargmin(hist["objective"]))
+        j = int(np.argmax(hist["peaks"][i]))
+        w_pk, designed = float(hist["peak_omegas"][i][j]), float(hist["peaks"][i][j])
+    hist["settles_on"] = _settles_on(tuned, w_pk, designed, amplitude, samples, solver, rtol,
+                                     atol)
 
 
 def _settles_on(tuned, omega, designed, amplitude, samples, solver, rtol, atol):
@@ -386,12 +399,16 @@ def _tune_from_starts(system, params, band, starts, n_starts, progress, kw):
         raise ValueError("tune: no design of the starts grid converged at every frequency")
     best = None
     for i in order:
+        # the independent checks run once, on the best result (below)
         start = replace_params(system, combos[i], check=True)
-        tuned, hist = tune(start, params, band, progress=progress, **kw)
+        tuned, hist = tune(start, params, band, progress=progress, **dict(kw, confirm=False))
         val = np.nanmin(hist["objective"])
         if best is None or val < best[0]:
             best = (val, tuned, hist)
     _, tuned, hist = best
+    if kw["confirm"]:
+        _confirm(system, tuned, hist, kw["amplitude"], kw["confirm_points"],
+                 kw["confirm_samples"], kw["solver"], kw["rtol"], kw["atol"])
     hist["starts"] = {"designs": combos, "grid_peak": peak, "tuned_from": [combos[i]
                                                                            for i in order]}
     return tuned, hist

@@ -66,20 +66,30 @@ def band_objective(amplitudes, objective="peak", softness=2e-3):
 
 class Reparam(eqx.Module):
     """Unconstrained ``u`` → parameter: ``lo + (hi - lo) sigmoid(u)`` with bounds, else
-    ``exp(u)`` (positive)."""
+    ``exp(u)`` (positive); where ``identity``, ``u`` is the parameter itself (exact_peak's
+    plain evaluation, which then shares tune's compilation)."""
 
     lo: jax.Array
     hi: jax.Array
     bounded: jax.Array
+    identity: jax.Array
+
+    @classmethod
+    def plain(cls, n):
+        """The identity map on ``n`` parameters."""
+        return cls(lo=jnp.zeros(n), hi=jnp.ones(n), bounded=jnp.zeros(n, bool),
+                   identity=jnp.ones(n, bool))
 
     def forward(self, u):
-        return jnp.where(self.bounded, self.lo + (self.hi - self.lo) * jax.nn.sigmoid(u),
-                         jnp.exp(u))
+        scaled = jnp.where(self.bounded, self.lo + (self.hi - self.lo) * jax.nn.sigmoid(u),
+                           jnp.exp(jnp.where(self.identity, 0.0, u)))
+        return jnp.where(self.identity, u, scaled)
 
     def inverse(self, p):
         q = jnp.clip((p - self.lo) / jnp.where(self.bounded, self.hi - self.lo, 1.0),
                      1e-9, 1 - 1e-9)
-        return jnp.where(self.bounded, jnp.log(q) - jnp.log1p(-q), jnp.log(jnp.maximum(p, 1e-300)))
+        u = jnp.where(self.bounded, jnp.log(q) - jnp.log1p(-q), jnp.log(jnp.maximum(p, 1e-300)))
+        return jnp.where(self.identity, p, u)
 
 
 def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
@@ -139,7 +149,7 @@ def value_and_grad(system, params, omegas, *, amplitude, objective="peak", softn
         return pk.value, pk.gradient, pk.grid_status
     p0 = jnp.array([float(get_param(system, k)) for k in names])
     ident = Reparam(lo=jnp.zeros(len(names)), hi=jnp.ones(len(names)),
-                    bounded=jnp.zeros(len(names), bool))
+                    bounded=jnp.zeros(len(names), bool), identity=jnp.zeros(len(names), bool))
     cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
                       rtol, atol)
     guesses = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
@@ -281,7 +291,8 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     p0 = np.array([float(get_param(system, k)) for k in names])
     reparam = Reparam(lo=jnp.array([bounds.get(k, (0.0, 1.0))[0] for k in names]),
                       hi=jnp.array([bounds.get(k, (0.0, 1.0))[1] for k in names]),
-                      bounded=jnp.array([k in bounds for k in names]))
+                      bounded=jnp.array([k in bounds for k in names]),
+                      identity=jnp.zeros(len(names), bool))
     for k, v in zip(names, p0):
         if k in bounds and not bounds[k][0] < v < bounds[k][1]:
             raise ValueError(f"the starting {k} = {v:g} must lie strictly inside bounds "

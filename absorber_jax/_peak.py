@@ -258,12 +258,12 @@ class BandPeak(eqx.Module):
 def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps,
               peaks, xtol, max_iter):
     """Slots of the band's peak at the design ``u`` (``reparam.forward(u)`` gives the named
-    parameters; ``reparam`` None: ``u`` are the parameters themselves): the grid pass, the
+    parameters; ``Reparam.plain``: ``u`` are the parameters themselves): the grid pass, the
     located frequencies, the refined amplitudes and their gradients in ``u`` at the located
     frequencies (envelope theorem).  One compilation per shape."""
     from ._params import replace_params
 
-    forward = (lambda v: v) if reparam is None else reparam.forward
+    forward = reparam.forward
 
     def system_at(v):
         return replace_params(system, dict(zip(names, forward(v))), check=False)
@@ -301,7 +301,7 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     ```
     """
     from ._checks import check_scalar, require_x64
-    from ._design import _check
+    from ._design import Reparam, _check
     from ._params import get_param
     from ._steady import check_system_and_forcing, make_config
 
@@ -323,9 +323,9 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
                       rtol, atol)
     guesses = jnp.full((n_freq, system.num_states), jnp.nan, dtype=jnp.float64)
-    out = peak_core(system, names, None, p0, jnp.asarray(omegas), jnp.asarray(amplitude, float),
-                    guesses, cfg, float(tol), int(newton_steps), int(peaks), float(xtol),
-                    int(max_iter))
+    out = peak_core(system, names, Reparam.plain(len(names)), p0, jnp.asarray(omegas),
+                    jnp.asarray(amplitude, float), guesses, cfg, float(tol), int(newton_steps),
+                    int(peaks), float(xtol), int(max_iter))
     out = {k: np.asarray(v) for k, v in out.items()}
     return BandPeak(omegas=out["omegas"], amplitudes=out["amplitudes"], kinds=out["kinds"],
                     iterations=out["iterations"], status=out["status"],

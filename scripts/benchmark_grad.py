@@ -33,7 +33,8 @@ def main(repeats):
         a, _, st, _ = _design.band_amplitudes(system, om, amp, guesses, cfg, 1e-7, 40)
         return _design.band_objective(a, "peak"), st
 
-    reparam = _design.Reparam(lo=jnp.zeros(3), hi=jnp.ones(3), bounded=jnp.zeros(3, bool))
+    reparam = _design.Reparam(lo=jnp.zeros(3), hi=jnp.ones(3), bounded=jnp.zeros(3, bool),
+                               identity=jnp.zeros(3, bool))
     u = jnp.log(jnp.array([float(aj.get_param(system, k)) for k in names]))
 
     def vg():

@@ -40,7 +40,7 @@ from ._shooting import Shooting
 from ._status import Status
 from ._steady import make_config, solve_point
 
-OBJECTIVES = ("peak", "mean_square", "amplitude", "exact_peak")
+OBJECTIVES = ("peak", "mean_square", "amplitude", "exact_peak", "robust_peak")
 _TRACES = {"tune_step": 0}
 
 
@@ -58,9 +58,9 @@ def band_objective(amplitudes, objective="peak", softness=2e-3):
         return jnp.mean(amplitudes**2)
     if objective == "amplitude":
         return amplitudes[0]
-    if objective == "exact_peak":
-        raise ValueError("objective 'exact_peak' is not a function of grid amplitudes: use "
-                         "exact_peak(...) or tune(..., objective='exact_peak')")
+    if objective in ("exact_peak", "robust_peak"):
+        raise ValueError(f"objective {objective!r} is not a function of grid amplitudes: use "
+                         f"{objective}(...) or tune(..., objective={objective!r})")
     raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
 
 
@@ -147,6 +147,15 @@ def value_and_grad(system, params, omegas, *, amplitude, objective="peak", softn
                         n_freq=omegas.size, tol=tol, rtol=rtol, atol=atol,
                         newton_steps=newton_steps, solver=solver)
         return pk.value, pk.gradient, pk.grid_status
+    if objective == "robust_peak":
+        from ._robust import robust_peak
+
+        if omegas.size < 3:
+            raise ValueError("objective 'robust_peak' needs a grid of >= 3 frequencies")
+        rp = robust_peak(system, (omegas[0], omegas[-1]), amplitude=amplitude, params=names,
+                         n_freq=omegas.size, tol=tol, rtol=rtol, atol=atol,
+                         newton_steps=newton_steps, solver=solver)
+        return rp.value, rp.gradient, rp.plain.grid_status
     p0 = jnp.array([float(get_param(system, k)) for k in names])
     ident = Reparam(lo=jnp.zeros(len(names)), hi=jnp.ones(len(names)),
                     bounded=jnp.zeros(len(names), bool), identity=jnp.zeros(len(names), bool))
@@ -204,7 +213,8 @@ def _check(system, params, omegas, objective):
 def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, steps=100,
          n_freq=64, bounds=None, softness=2e-3, peaks=2, tol=1e-7, rtol=1e-10, atol=1e-10,
          newton_steps=40, solver=None, progress=False, confirm=True, confirm_points=12,
-         confirm_samples=8, stability_margin=None, starts=None, n_starts=3, callback=None):
+         confirm_samples=8, stability_margin=None, starts=None, n_starts=3, modes=True,
+         probes=8, probe_samples=16, rounds=3, callback=None):
     """Tune absorber parameters to minimise the primary's steady-state amplitude over a band.
 
     **Arguments**
@@ -218,23 +228,37 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
         ``dA/dω`` bracketed on the grid, gradient by the envelope theorem), over ``peaks``
         slots (the tallest local maxima).  Minimised by default as the minimax problem it is,
         ``min t`` subject to ``A_j(θ) <= t`` for every slot, by SLSQP on the epigraph, which
-        lands on the equal-peak optimum rather than zigzagging between the peaks;
+        lands on the equal-peak optimum rather than zigzagging between the peaks.  Every grid
+        point is a constraint too, and with ``modes`` (default) the grid follows the design's
+        lightly damped modes (:func:`exact_peak`), so that a design cannot hide a sharp
+        resonance between grid points;
+      - ``"robust_peak"``: the worst *stable* response the structure can settle on
+        (:func:`robust_peak`): ``"exact_peak"`` plus the coexisting responses that attractor
+        maps at ``probes`` frequencies (``probe_samples`` initial states each) find.  Each
+        period-1 one larger than what the objective sees is followed by shooting as the
+        design moves (one more minimax constraint, with its gradient); the maps run again
+        at each result, and a new larger response starts another of at most ``rounds``
+        minimax rounds (``history["rounds"]``, ``history["robust"]``).  A response of longer
+        period is reported (``history["robust"]["longer_period"]``), not followed;
       - ``"peak"``: the smooth maximum of the grid (bias bounded by ``τ log n_freq``);
       - ``"mean_square"``; ``"amplitude"`` (``band = (ω, ω)``).
     - ``optimizer``: an optax transformation (default for the grid objectives: Adam, learning
       rate 0.05 with cosine decay over ``steps``) acting on the reparametrised values:
       ``log p`` for positive parameters, ``logit`` of the position within
-      ``bounds[name] = (lo, hi)`` otherwise.  With ``"exact_peak"`` an optax optimiser
-      descends the largest slot instead of the minimax solve.
+      ``bounds[name] = (lo, hi)`` otherwise.  With ``"exact_peak"``/``"robust_peak"`` an
+      optax optimiser descends the largest slot instead of the minimax solve.
     - ``steps``: optimiser steps (SLSQP iterations for the minimax solve).
-    - ``stability_margin``: with ``"exact_peak"``, a design whose orbit at a located peak has
-      a Floquet multiplier of modulus above ``1 - stability_margin`` is infeasible: the
-      minimax line search backs off from it and it is never returned (``history["unstable"]``
-      counts them).
+    - ``stability_margin``: with ``"exact_peak"``/``"robust_peak"``, a design whose orbit at a
+      located peak has a Floquet multiplier of modulus above ``1 - stability_margin`` is
+      infeasible: the minimax line search backs off from it and it is never returned
+      (``history["unstable"]`` counts them).
     - ``starts``: global starts, ``{name: values}`` for some or all tuned parameters: the
       grid of their combinations (the others at the starting design) is evaluated on the
       band's grid in one vmapped call per design chunk, the ``n_starts`` best designs are each
       tuned, and the best result is returned (``history["starts"]`` holds the grid).
+    - ``modes``: with the exact objectives, grid points at the design's lightly damped modes
+      (:func:`exact_peak`); ``probes``, ``probe_samples``, ``rounds``: the attractor maps
+      and exchange rounds of ``"robust_peak"``.
     - ``progress``: tqdm bar; ``confirm``: re-check the curves before and after with marching
       (an independent method) on ``confirm_points`` frequencies, and march from
       ``confirm_samples`` initial states at the tuned design's peak frequency: the responses
@@ -262,21 +286,27 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
             n_freq=n_freq, bounds=bounds, softness=softness, peaks=peaks, tol=tol, rtol=rtol,
             atol=atol, newton_steps=newton_steps, solver=solver, confirm=confirm,
             confirm_points=confirm_points, confirm_samples=confirm_samples,
-            stability_margin=stability_margin, callback=callback))
+            stability_margin=stability_margin, modes=modes, probes=probes,
+            probe_samples=probe_samples, rounds=rounds, callback=callback))
     if stability_margin is not None:
         check_scalar("tune", "stability_margin", stability_margin, lo=0.0, hi=1.0, hi_open=True)
-        if objective != "exact_peak":
-            raise ValueError("tune.stability_margin needs objective='exact_peak' (the margin is "
-                             "checked on the orbits at the located peaks)")
+        if objective not in ("exact_peak", "robust_peak"):
+            raise ValueError("tune.stability_margin needs objective='exact_peak' or "
+                             "'robust_peak' (the margin is checked on the orbits at the "
+                             "located peaks)")
     lo, hi = band
     check_scalar("tune", "band[0]", lo, lo=0.0, lo_open=True)
     check_scalar("tune", "band[1]", hi, lo=float(lo))
     if not isinstance(steps, int) or steps < 0:
         raise ValueError(f"tune.steps must be a non-negative integer, got {steps!r}")
-    exact = objective == "exact_peak"
+    exact = objective in ("exact_peak", "robust_peak")
+    robust = objective == "robust_peak"
     if exact and not (isinstance(n_freq, int) and n_freq >= 3 and hi > lo):
-        raise ValueError("tune with objective='exact_peak' needs a band hi > lo and "
+        raise ValueError(f"tune with objective={objective!r} needs a band hi > lo and "
                          f"n_freq >= 3, got band {band} and n_freq {n_freq!r}")
+    for field, v in (("probes", probes), ("probe_samples", probe_samples), ("rounds", rounds)):
+        if robust and not (isinstance(v, int) and v >= 1):
+            raise ValueError(f"tune.{field} must be a positive integer, got {v!r}")
     if exact and not (isinstance(peaks, int) and 1 <= peaks <= n_freq):
         raise ValueError(f"tune.peaks must be an integer in [1, n_freq], got {peaks!r}")
     omegas = np.linspace(lo, hi, n_freq) if hi > lo else np.array([float(lo)])
@@ -303,12 +333,17 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
                       rtol, atol)
     u0 = reparam.inverse(jnp.asarray(p0))
     evaluate = _Evaluator(system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
-                          objective, softness, peaks, stability_margin, solver, rtol, atol)
+                          objective, softness, peaks, stability_margin, solver, rtol, atol,
+                          modes)
     hist = {"objective": [], "params": {k: [] for k in names}, "grad_norm": [], "failed": [],
             "nonsmooth": [], "seconds": [], "peak_bias": []}
     if exact:
         hist.update(peaks=[], peak_omegas=[], unstable=0)
-    if exact and optimizer is None:
+    if robust:
+        u_best = _robust_rounds(evaluate, band, u0, steps, hist, progress, callback,
+                                optimizer, dict(probes=probes, samples=probe_samples,
+                                                solver=solver, rtol=rtol, atol=atol), rounds)
+    elif exact and optimizer is None:
         u_best = _minimax(evaluate, u0, steps, hist, progress, callback)
     else:
         if optimizer is None:
@@ -431,12 +466,18 @@ class _Evaluator:
     frequencies by marching, and one history record per evaluation."""
 
     def __init__(self, system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
-                 objective, softness, peaks, margin=None, solver=None, rtol=1e-10, atol=1e-10):
+                 objective, softness, peaks, margin=None, solver=None, rtol=1e-10, atol=1e-10,
+                 modes=True):
         self.args = (system, names, reparam)
         self.margin, self.integrator = margin, dict(solver=solver, rtol=rtol, atol=atol)
         self.omegas, self.amplitude, self.cfg = omegas, amplitude, cfg
         self.tol, self.newton_steps = tol, newton_steps
         self.objective, self.softness, self.peaks = objective, softness, peaks
+        self.modes = bool(modes)
+        self.exact = objective in ("exact_peak", "robust_peak")
+        # coexisting responses followed by shooting (objective "robust_peak"): their
+        # frequencies and internal states
+        self.tracked = None
         self.guesses = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
         self.amps_before = None
         self.prev_status = None
@@ -445,13 +486,16 @@ class _Evaluator:
     def _run(self, u, guesses):
         system, names, reparam = self.args
         om, amp = jnp.asarray(self.omegas), jnp.asarray(self.amplitude, dtype=float)
-        if self.objective == "exact_peak":
+        if self.exact:
             from ._peak import peak_core
 
             out = peak_core(system, names, reparam, u, om, amp, guesses, self.cfg,
-                            float(self.tol), int(self.newton_steps), int(self.peaks), 1e-10, 40)
+                            float(self.tol), int(self.newton_steps), int(self.peaks), 1e-10, 40,
+                            self.modes)
             out = {k: np.asarray(v) for k, v in out.items()}
-            return (out, out["grid_amplitude"], out["grid_states"], out["grid_status"])
+            F = len(self.omegas)    # the uniform grid (then the modal points)
+            return (out, out["grid_amplitude"][:F], out["grid_states"][:F],
+                    out["grid_status"][:F])
         val, g, (amps, states, status) = _value_and_jac(
             system, names, reparam, u, om, amp, guesses, self.cfg, self.tol,
             self.newton_steps, self.objective, self.softness)
@@ -478,6 +522,21 @@ class _Evaluator:
             out[j] = not (bool(ss.stable) and np.all(mu <= 1.0 - self.margin))
         return out
 
+    def _follow(self, u):
+        """Amplitudes, gradients and success of the tracked coexisting responses at ``u``;
+        their states move on with the design."""
+        from ._robust import track
+
+        system, names, reparam = self.args
+        w, x = self.tracked
+        a, g, xn, st = (np.asarray(v) for v in track(
+            system, names, reparam, jnp.asarray(u), jnp.asarray(w),
+            jnp.asarray(self.amplitude, dtype=float), jnp.asarray(x), self.cfg,
+            float(self.tol), int(self.newton_steps)))
+        ok = st == Status.SUCCESS
+        self.tracked = (w, np.where(ok[:, None], xn, x))
+        return np.where(ok, a, 0.0), np.where(ok[:, None], g[:, 1:], 0.0), ok
+
     def __call__(self, u, hist):
         """``(values, jacobian, ok)``: per slot for "exact_peak" (values (K,), jacobian (K, P)),
         else the objective as one slot.  Cached by ``u``."""
@@ -499,12 +558,24 @@ class _Evaluator:
             self.amps_before = amps
         self.guesses = jnp.where(jnp.asarray(grid_ok)[:, None], states, jnp.nan)
         unstable = None
-        if self.objective == "exact_peak":
+        if self.exact:
             # the located peaks, and every grid point as a constraint too (a lower bound of the
             # peak): a peak that no slot tracks cannot rise unseen above the others
-            ok = np.concatenate([res["status"], status]) == Status.SUCCESS
+            ok = np.concatenate([res["status"], res["grid_status"]]) == Status.SUCCESS
             vals = np.concatenate([res["amplitudes"], res["grid_amplitude"]])
             jac = np.concatenate([res["jac"], res["grid_jac"]])
+            # a modal grid point that fails is no information (no constraint); a uniform grid
+            # point or a slot that fails makes the design unacceptable (below)
+            F, K = len(self.omegas), len(res["amplitudes"])
+            seed_failed = np.zeros(len(vals), bool)
+            seed_failed[K + F:] = ~ok[K + F:]
+            vals, ok = np.where(seed_failed, 0.0, vals), ok | seed_failed
+            jac = np.where(seed_failed[:, None], 0.0, jac)
+            if self.tracked is not None:
+                a_t, j_t, ok_t = self._follow(u)
+                hist["tracked"].append(a_t.copy())
+                ok = np.concatenate([ok, ok_t])
+                vals, jac = np.concatenate([vals, a_t]), np.concatenate([jac, j_t])
             if self.margin is not None:
                 K = len(res["amplitudes"])
                 unstable = np.concatenate([self._unstable(u, res, ok[:K]),
@@ -536,7 +607,7 @@ class _Evaluator:
         hist["peak_bias"].append(bias)
         hist["seconds"].append(time.perf_counter() - t)
         self.prev_status = status
-        feasible = not (self.objective == "exact_peak" and self.margin is not None
+        feasible = not (self.exact and self.margin is not None
                         and bool(unstable.any()))
         out = (vals, jac, ok & grid_ok.all(), val, g, dict(zip(names, p)), feasible)
         self.cache = {key: out}
@@ -614,6 +685,63 @@ def _minimax(evaluate, u0, steps, hist, progress, callback):
     bar.close()
     hist["feasible"] = bool(np.isfinite(best[0]))
     return jnp.asarray(best[1])
+
+
+def _robust_rounds(evaluate, band, u0, steps, hist, progress, callback, optimizer, probe_kw,
+                   rounds):
+    """Objective ``"robust_peak"`` by exchange rounds: attractor maps at the current design
+    find its stable responses; each period-1 one larger than the exact peak (slots and
+    grid) is followed from then on by shooting at its frequency, its amplitude one more
+    minimax constraint (its gradient from the implicit orbit).  A design where a followed
+    response is not found again is not accepted (it may have vanished past a fold, or
+    shooting may have lost it: the design never gains from a failure).  After each minimax
+    the maps run again at the result and the followed set is rebuilt from them; the rounds
+    end when the maps find nothing larger than the exact peak that is not followed, or after
+    ``rounds``.  A response of longer period is reported, not followed."""
+    from ._robust import stable_responses
+
+    hist.update(tracked=[], rounds=[])
+    system, names, reparam = evaluate.args
+    u = np.asarray(u0, dtype=float)
+    followed = None
+    for r in range(rounds + 1):
+        sysu = replace_params(system, dict(zip(names, np.asarray(reparam.forward(u)))),
+                              check=False)
+        found = stable_responses(sysu, band, float(evaluate.amplitude), **probe_kw)
+        evaluate.tracked, evaluate.cache = None, {}
+        plain = float(evaluate(u, hist)[3])
+        larger = [(w, a) for w, a in found
+                  if a.period_multiple == 1 and a.amplitude > plain * (1 + 1e-3)]
+        worst = max([plain] + [float(a.amplitude) for _, a in found])
+        new = followed is None or any(
+            not np.any(np.isclose(w, followed[0]) & np.isclose(a.amplitude, followed[1],
+                                                               rtol=1e-3))
+            for w, a in larger)
+        hist["rounds"].append(dict(
+            plain=plain, worst=worst,
+            params=dict(zip(names, np.asarray(reparam.forward(u)).tolist())),
+            found=[dict(omega=w, amplitude=float(a.amplitude),
+                        period_multiple=int(a.period_multiple),
+                        state=np.asarray(a.state).tolist()) for w, a in found],
+            followed=len(larger)))
+        if r == rounds or not larger or (r > 0 and not new):
+            break
+        evaluate.tracked = (np.array([w for w, _ in larger]),
+                            np.array([np.asarray(sysu.to_internal(jnp.asarray(a.state)))
+                                      for _, a in larger]))
+        evaluate.cache = {}
+        followed = (evaluate.tracked[0], np.array([float(a.amplitude) for _, a in larger]))
+        if optimizer is None:
+            u = np.asarray(_minimax(evaluate, u, steps, hist, progress, callback))
+        else:
+            u = np.asarray(_descend(evaluate, optimizer, jnp.asarray(u), steps, hist, progress,
+                                    callback))
+    last = hist["rounds"][-1]
+    longer = [f["amplitude"] for f in last["found"] if f["period_multiple"] > 1]
+    hist["robust"] = dict(value=last["worst"], plain=last["plain"],
+                          source="branch" if last["worst"] <= last["plain"] * (1 + 1e-3)
+                          else "coexisting", longer_period=max(longer, default=math.nan))
+    return jnp.asarray(u)
 
 
 def plot_tuning(system_before, tuned, hist, path=None, title=""):

@@ -205,7 +205,7 @@ class BandPeak(eqx.Module):
     point, 3 not bracketed: see ``KIND_NAMES``), ``located``, ``iterations`` (Illinois
     steps), ``status``; ``gradients``: ``d amplitude / d parameter`` per slot and named
     parameter (envelope theorem).  ``grid_omegas``/``grid_amplitude``/``grid_status``: the
-    coarse pass."""
+    coarse pass (the uniform grid, then the modal points)."""
 
     omegas: np.ndarray
     amplitudes: np.ndarray
@@ -254,13 +254,47 @@ class BandPeak(eqx.Module):
         return f"peak {self.value:.8g} at ω = {self.omega:.8g} rad/s\n" + "\n".join(lines)
 
 
+def modal_seeds(system, lo, hi):
+    """Grid points at the linearisation's lightly damped modes: for each of the ``S // 2``
+    eigenvalues ``λ = -ζω + iω_d`` of the vector field's Jacobian at rest (no forcing) with
+    the largest imaginary parts, ``ω_d (1 - ζ)``, ``ω_d`` and ``ω_d (1 + ζ)`` (the
+    half-power band), clipped to ``[lo, hi]``.  A resonance narrower than the grid spacing
+    (a lightly damped mode that a design has detuned or left undamped) is then bracketed
+    whatever the grid.  Overdamped modes and a non-finite Jacobian give band-edge points."""
+    rest = system.rest_state()
+    still = Harmonic(amplitude=0.0, omega=1.0)
+    J = jax.jacfwd(lambda s: system.vector_field(jnp.zeros(()), s, still))(rest)
+    finite = jnp.all(jnp.isfinite(J))
+    lam = jnp.linalg.eigvals(jnp.where(finite, J, 0.0))
+    lam = lax_top_imag(lam, system.num_states // 2)
+    wd = jnp.abs(jnp.imag(lam))
+    zeta = jnp.clip(-jnp.real(lam) / jnp.maximum(jnp.abs(lam), 1e-300), 0.0, 1.0)
+    w = jnp.concatenate([wd * (1 - zeta), wd, wd * (1 + zeta)])
+    w = jnp.where(finite & jnp.isfinite(w), w, lo)
+    return jax.lax.stop_gradient(jnp.clip(w, lo, hi))
+
+
+def lax_top_imag(lam, k):
+    """The ``k`` eigenvalues with the largest imaginary parts."""
+    _, i = jax.lax.top_k(jnp.imag(lam), k)
+    return lam[i]
+
+
+def n_seeds(system, modes):
+    """Number of modal grid points :func:`modal_seeds` adds (0 without ``modes``)."""
+    return 3 * (system.num_states // 2) if modes else 0
+
+
 @eqx.filter_jit
 def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps,
-              peaks, xtol, max_iter):
+              peaks, xtol, max_iter, modes=True):
     """Slots of the band's peak at the design ``u`` (``reparam.forward(u)`` gives the named
-    parameters; ``Reparam.plain``: ``u`` are the parameters themselves): the grid pass, the
-    located frequencies, the refined amplitudes and their gradients in ``u`` at the located
-    frequencies (envelope theorem).  One compilation per shape."""
+    parameters; ``Reparam.plain``: ``u`` are the parameters themselves): the grid pass (the
+    ``omegas`` and, with ``modes``, the :func:`modal_seeds`), the located frequencies, the
+    refined amplitudes and their gradients in ``u`` at the located frequencies (envelope
+    theorem).  ``guesses``: warm starts on ``omegas`` (the seeds start from the method's
+    guess).  The ``grid_*`` outputs list ``omegas`` first, then the seeds.  One compilation
+    per shape."""
     from ._params import replace_params
 
     forward = reparam.forward
@@ -269,27 +303,40 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
         return replace_params(system, dict(zip(names, forward(v))), check=False)
 
     method = shooting_for_design(tol, newton_steps)
+    grid_w, grid_g = omegas, guesses
+    if modes:
+        seeds = modal_seeds(system_at(u), omegas[0], omegas[-1])
+        grid_w = jnp.concatenate([omegas, seeds])
+        grid_g = jnp.concatenate([guesses, jnp.full((seeds.shape[0], guesses.shape[1]),
+                                                    jnp.nan, guesses.dtype)])
     grid = jax.vmap(lambda w, g: evaluate(system_at, u, w, amplitude, g, cfg, method))(
-        omegas, guesses)
+        grid_w, grid_g)
     amps, grads, states, status = grid
-    kind, j = candidates(omegas, amps, grads[:, 0], status == Status.SUCCESS, peaks)
+    order = jnp.argsort(grid_w)
+    w_sorted = grid_w[order]
+    by_freq = jax.tree_util.tree_map(lambda a: a[order], grid)
+    kind, j = candidates(w_sorted, by_freq[0], by_freq[1][:, 0],
+                         by_freq[3] == Status.SUCCESS, peaks)
     w, a, g, x, st, it = jax.vmap(
-        lambda kk, jj: locate(system_at, u, omegas, amplitude, grid, kk, jj, cfg, method, xtol,
-                              max_iter))(kind, j)
+        lambda kk, jj: locate(system_at, u, w_sorted, amplitude, by_freq, kk, jj, cfg, method,
+                              xtol, max_iter))(kind, j)
     return dict(omegas=w, amplitudes=a, kinds=kind, iterations=it, status=st, jac=g[:, 1:],
-                slopes=g[:, 0], states=x, grid_amplitude=amps, grid_states=states,
-                grid_status=status, grid_jac=grads[:, 1:])
+                slopes=g[:, 0], states=x, grid_omegas=grid_w, grid_amplitude=amps,
+                grid_states=states, grid_status=status, grid_jac=grads[:, 1:])
 
 
 def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e-8,
                rtol=1e-10, atol=1e-10, newton_steps=40, solver=None, xtol=1e-10,
-               max_iter=40) -> BandPeak:
+               max_iter=40, modes=True) -> BandPeak:
     """The largest steady-state amplitude of ``system.observable`` over ``band = (lo, hi)``
     [rad/s] under a harmonic force of ``amplitude`` F0 [N], located exactly (module
     docstring), with its gradient in the named ``params`` (envelope theorem).
 
     ``n_freq``: points of the coarse grid that brackets the peaks (enough to separate them);
-    ``peaks``: slots located (2 for a tuned mass damper's two peaks); ``xtol``: relative
+    ``peaks``: slots located (2 for a tuned mass damper's two peaks); ``modes``: add grid
+    points at the lightly damped modes of the linearisation at rest and their half-power
+    points (:func:`modal_seeds`: ``3 * num_states // 2`` points), so that a resonance
+    narrower than the grid spacing is not missed; ``xtol``: relative
     tolerance on the located frequencies; ``tol``, ``rtol``, ``atol``, ``newton_steps``,
     ``solver``: shooting and integrator settings.
 
@@ -325,10 +372,10 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     guesses = jnp.full((n_freq, system.num_states), jnp.nan, dtype=jnp.float64)
     out = peak_core(system, names, Reparam.plain(len(names)), p0, jnp.asarray(omegas),
                     jnp.asarray(amplitude, float), guesses, cfg, float(tol), int(newton_steps),
-                    int(peaks), float(xtol), int(max_iter))
+                    int(peaks), float(xtol), int(max_iter), bool(modes))
     out = {k: np.asarray(v) for k, v in out.items()}
     return BandPeak(omegas=out["omegas"], amplitudes=out["amplitudes"], kinds=out["kinds"],
                     iterations=out["iterations"], status=out["status"],
                     gradients={k: out["jac"][:, i] for i, k in enumerate(names)},
-                    grid_omegas=omegas, grid_amplitude=out["grid_amplitude"],
+                    grid_omegas=out["grid_omegas"], grid_amplitude=out["grid_amplitude"],
                     grid_status=out["grid_status"])

@@ -15,6 +15,7 @@ enters the value, with no gradient (``gradient`` then holds NaN).
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -60,15 +61,36 @@ class RobustPeak(eqx.Module):
 
 
 @eqx.filter_jit
-def _polish(system, names, p, omega, amplitude, guess, cfg, tol, newton_steps):
+def track(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps):
+    """Responses followed by shooting from ``guesses`` (internal states) at fixed ``omegas``
+    for the design ``u`` (``reparam.forward(u)`` gives the named parameters): per response
+    ``(A, [dA/dω, dA/du...], internal state, status)`` (vmapped :func:`evaluate`)."""
     from ._params import replace_params
     from ._peak import evaluate, shooting_for_design
 
     def system_at(v):
-        return replace_params(system, dict(zip(names, v)), check=False)
+        return replace_params(system, dict(zip(names, reparam.forward(v))), check=False)
 
-    return evaluate(system_at, p, omega, amplitude, guess, cfg,
-                    shooting_for_design(tol, newton_steps))
+    method = shooting_for_design(tol, newton_steps)
+    return jax.vmap(lambda w, g: evaluate(system_at, u, w, amplitude, g, cfg, method))(
+        omegas, guesses)
+
+
+def stable_responses(system, band, amplitude, *, probes, samples, spread=3.0, seed=0,
+                     max_periods=2000, solver=None, rtol=1e-10, atol=1e-10):
+    """``[(ω, attractor)]``: the stable periodic responses of attractor maps at ``probes``
+    frequencies uniform over ``band``."""
+    from ._attractors import attractors
+
+    found = []
+    for w in np.linspace(float(band[0]), float(band[1]), probes):
+        amap = attractors(system, Harmonic(amplitude=amplitude, omega=float(w)),
+                          samples=samples, spread=spread, seed=seed, max_periods=max_periods,
+                          solver=solver, rtol=rtol, atol=atol)
+        for att in amap.attractors:
+            if att.periodic and att.converged and att.stable:
+                found.append((float(w), att))
+    return found
 
 
 def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probes=8,
@@ -81,7 +103,7 @@ def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probe
     frequencies of the attractor maps, uniform over the band; ``samples``, ``spread``,
     ``seed``, ``max_periods``: their initial states and marching budget
     (:func:`attractors`)."""
-    from ._attractors import attractors
+    from ._design import Reparam
     from ._params import get_param
     from ._peak import exact_peak
     from ._steady import make_config
@@ -92,14 +114,9 @@ def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probe
                        peaks=peaks, tol=tol, rtol=rtol, atol=atol, newton_steps=newton_steps,
                        solver=solver)
     names = tuple(params)
-    found = []
-    for w in np.linspace(float(band[0]), float(band[1]), probes):
-        amap = attractors(system, Harmonic(amplitude=amplitude, omega=float(w)),
-                          samples=samples, spread=spread, seed=seed, max_periods=max_periods,
-                          solver=solver, rtol=rtol, atol=atol)
-        for att in amap.attractors:
-            if att.periodic and att.converged and att.stable:
-                found.append((float(w), att))
+    found = stable_responses(system, band, amplitude, probes=probes, samples=samples,
+                             spread=spread, seed=seed, max_periods=max_periods, solver=solver,
+                             rtol=rtol, atol=atol)
     coexisting = tuple(Coexisting(omega=w, amplitude=float(a.amplitude),
                                   period_multiple=int(a.period_multiple), share=float(a.share),
                                   stable=bool(a.stable), state=np.asarray(a.state))
@@ -114,11 +131,12 @@ def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probe
                 forcing = Harmonic(amplitude=amplitude, omega=w)
                 cfg = make_config(system, forcing, solver, rtol, atol)
                 p = jnp.array([float(get_param(system, k)) for k in names])
-                guess = system.to_internal(jnp.asarray(att.state))
-                a, g, _, st = _polish(system, names, p, jnp.asarray(w), jnp.asarray(
-                    amplitude, dtype=float), guess, cfg, float(tol), int(newton_steps))
-                if int(st) == Status.SUCCESS:
-                    value = float(a)
-                    grad = {k: float(g[1 + i]) for i, k in enumerate(names)}
+                guess = system.to_internal(jnp.asarray(att.state))[None]
+                a, g, _, st = track(system, names, Reparam.plain(len(names)), p,
+                                    jnp.array([w]), jnp.asarray(amplitude, dtype=float), guess,
+                                    cfg, float(tol), int(newton_steps))
+                if int(st[0]) == Status.SUCCESS:
+                    value = float(a[0])
+                    grad = {k: float(g[0, 1 + i]) for i, k in enumerate(names)}
     return RobustPeak(value=value, omega=omega, source=source, gradient=grad, plain=plain,
                       coexisting=coexisting)

@@ -85,6 +85,26 @@ def _check_peaks_and_gradients_against_the_closed_form():
     assert pk.gradient["k1"] == pk.gradients["k1"][pk.index]
 
 
+def _check_a_narrow_resonance_between_grid_points():
+    """A nearly undamped absorber (zeta = 0.002): its two resonances are ~0.2 rad/s wide,
+    far narrower than the 4 rad/s grid spacing, so the uniform grid alone sees neither; the
+    grid points at the linearisation's modes (``modes=True``) bracket both, and the located
+    peaks equal the closed form's."""
+    mu, f, zeta = 0.05, 0.95, 0.002
+    pk = aj.exact_peak(tmd(mu, f, zeta), (70.0, 130.0), amplitude=1.0, params=["k1", "c1"],
+                       n_freq=16, **TIGHT)
+    ref = peaks(mu, f, zeta)
+    top = max(h for _, h in ref) / K
+    uniform = pk.grid_amplitude[:16]
+    assert uniform.max() < 0.2 * top               # the uniform grid alone misses them
+    assert len(pk.grid_omegas) == 16 + 6            # 2 modes x 3 points
+    assert np.all(pk.ok) and np.all(pk.located)
+    for j, (r, h) in enumerate(ref):
+        np.testing.assert_allclose(pk.omegas[j], r * WN, rtol=1e-8)
+        np.testing.assert_allclose(pk.amplitudes[j] * K, h, rtol=1e-7)
+    np.testing.assert_allclose(pk.value, top, rtol=1e-7)
+
+
 # CI time: mu = 0.2 with -m slow
 @pytest.mark.parametrize("mu, band", [(0.05, (70.0, 130.0)),
                                       pytest.param(0.2, (60.0, 140.0), marks=pytest.mark.slow)])
@@ -93,6 +113,7 @@ def test_exact_peak_and_minimax_tuning_on_the_tmd(mu, band):
     to the H-infinity optimum (one process, one compilation)."""
     if mu == 0.05:
         _check_peaks_and_gradients_against_the_closed_form()
+        _check_a_narrow_resonance_between_grid_points()
     f_ref, z_ref, peak_ref = h_infinity(mu)
     f_na, z_na = nishihara_asami(mu)
     np.testing.assert_allclose((f_ref, z_ref), (f_na, z_na), rtol=1e-7)  # the references
@@ -162,6 +183,40 @@ def test_robust_objective_reports_the_coexisting_upper_branch():
     fd = (upper(HARD["k_c"] + h) - upper(HARD["k_c"] - h)) / (2 * h)
     # measured 1.7e-4: the library's contact is smoothed at the gap (eps), the reference not
     np.testing.assert_allclose(r.gradient["contact1.stiffness"], fd, rtol=1e-3)
+
+
+@pytest.mark.slow  # CI time: ~2.5 min (attractor maps in every round, four compilations)
+def test_robust_tuning_removes_the_coexisting_upper_branch():
+    """The hardening oscillator's clearance tuned on the robust objective: at the start the
+    attractor maps find the upper branch (5.8x the exact peak of the branch shooting
+    follows, which does not depend on the clearance at all: a plain tuning has nothing to
+    descend); the rounds follow it as the design moves until the maps at the result find one
+    response per probe, and every response found there is the exact piecewise-linear orbit
+    (reference_jumps' period map)."""
+    from scipy.optimize import fsolve
+    from test_continuation import HARD, hardening
+
+    c, F0 = HARD["c"], HARD["F0"]
+    tuned, hist = aj.tune(hardening(), ["contact1.gap"], (1.1, 1.2), amplitude=F0,
+                          objective="robust_peak", n_freq=8, probes=3, probe_samples=12,
+                          steps=6, rounds=2, bounds={"contact1.gap": (0.05, 2.0)},
+                          confirm=False)
+    first, last = hist["rounds"][0], hist["rounds"][-1]
+    linear = F0 / abs(1 - 1.1**2 + 1j * c * 1.1)
+    np.testing.assert_allclose(first["plain"], linear, rtol=1e-6)
+    assert first["worst"] > 5 * first["plain"] and first["followed"] >= 1
+    assert hist["robust"]["source"] == "branch" and last["followed"] == 0
+    assert hist["robust"]["value"] < 0.3 * first["worst"]
+    assert len(last["found"]) == 3                     # one stable response per probe
+    g = hist["best"]["contact1.gap"]
+    assert 0.05 < g < 0.5
+    p = dict(c=c, F0=F0, k_c=HARD["k_c"], g=g)
+    for f in last["found"]:
+        w = f["omega"]
+        x = fsolve(lambda x, w=w: rj.period_map(x, w, **p) - x, f["state"], xtol=1e-13)
+        # measured 1.4e-6: marched amplitudes (sampled extremes), the contact smoothed at the gap
+        np.testing.assert_allclose(f["amplitude"], rj.amplitude(x, w, **p), rtol=1e-5)
+    assert max(f["amplitude"] for f in last["found"]) <= hist["robust"]["value"] * (1 + 1e-9)
 
 
 @pytest.mark.slow  # CI time: three more compilations (the design grid, attractors, Floquet)

@@ -138,24 +138,18 @@ def value_and_grad(system, params, omegas, *, amplitude, objective="peak", softn
 
     Returns ``(value, {name: dvalue/dname}, status per frequency)``."""
     names, omegas = _check(system, params, omegas, objective)
-    if objective == "exact_peak":
+    if objective in ("exact_peak", "robust_peak"):
         from ._peak import exact_peak
-
-        if omegas.size < 3:
-            raise ValueError("objective 'exact_peak' needs a grid of >= 3 frequencies")
-        pk = exact_peak(system, (omegas[0], omegas[-1]), amplitude=amplitude, params=names,
-                        n_freq=omegas.size, tol=tol, rtol=rtol, atol=atol,
-                        newton_steps=newton_steps, solver=solver)
-        return pk.value, pk.gradient, pk.grid_status
-    if objective == "robust_peak":
         from ._robust import robust_peak
 
         if omegas.size < 3:
-            raise ValueError("objective 'robust_peak' needs a grid of >= 3 frequencies")
-        rp = robust_peak(system, (omegas[0], omegas[-1]), amplitude=amplitude, params=names,
-                         n_freq=omegas.size, tol=tol, rtol=rtol, atol=atol,
-                         newton_steps=newton_steps, solver=solver)
-        return rp.value, rp.gradient, rp.plain.grid_status
+            raise ValueError(f"objective {objective!r} needs a grid of >= 3 frequencies")
+        fn = exact_peak if objective == "exact_peak" else robust_peak
+        pk = fn(system, (omegas[0], omegas[-1]), amplitude=amplitude, params=names,
+                n_freq=omegas.size, tol=tol, rtol=rtol, atol=atol, newton_steps=newton_steps,
+                solver=solver)
+        plain = pk if objective == "exact_peak" else pk.plain
+        return pk.value, pk.gradient, plain.grid_status
     p0 = jnp.array([float(get_param(system, k)) for k in names])
     ident = Reparam(lo=jnp.zeros(len(names)), hi=jnp.ones(len(names)),
                     bounded=jnp.zeros(len(names), bool), identity=jnp.zeros(len(names), bool))

@@ -149,6 +149,13 @@ def test_exact_peak_bad_input():
         aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, params=["k9"])
     with pytest.raises(ValueError, match="exact_peak"):
         aj.tune(system, ["k1"], (70.0, 70.0), amplitude=1.0, objective="exact_peak")
+    with pytest.raises(ValueError, match="robust_peak.*>= 3 frequencies"):
+        aj.value_and_grad(system, ["k1"], [70.0, 80.0], amplitude=1.0, objective="robust_peak")
+    with pytest.raises(ValueError, match="tune.probes must be a positive integer"):
+        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, objective="robust_peak",
+                probes=0)
+    with pytest.raises(ValueError, match="stability_margin needs"):
+        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, stability_margin=0.1)
 
 
 def test_robust_objective_reports_the_coexisting_upper_branch():

@@ -169,6 +169,12 @@ def cmd_tune(args):
             "status_after": c["status_after"].tolist()}
     if "settles_on" in hist:
         summary["settles_on"] = hist["settles_on"]
+    if "robust" in hist:
+        summary["robust"] = hist["robust"]
+        summary["robust_rounds"] = [{k: v for k, v in r.items() if k != "found"}
+                                    | {"found": [{k: v for k, v in f.items() if k != "state"}
+                                                 for f in r["found"]]}
+                                    for r in hist["rounds"]]
     with open(os.path.join(args.out, "tuning.json"), "w") as fh:
         json.dump(summary, fh, indent=2)
     print(json.dumps({k: summary[k] for k in ("tuned", "peak_before_mm", "peak_after_mm")}))
@@ -583,7 +589,7 @@ def build_parser():
     t.add_argument("--band", required=True, help="LO:HI [rad/s]")
     t.add_argument("--amplitude", type=float, default=None)
     t.add_argument("--objective", default="peak",
-                   choices=["peak", "exact_peak", "mean_square", "amplitude"])
+                   choices=["peak", "exact_peak", "robust_peak", "mean_square", "amplitude"])
     t.add_argument("--steps", type=int, default=40)
     t.add_argument("--n-freq", type=int, default=32)
     t.add_argument("--set", action="append", metavar="field=value")

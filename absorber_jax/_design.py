@@ -475,7 +475,7 @@ class _Evaluator:
         self.guesses = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
         self.amps_before = None
         self.prev_status = None
-        self.cache = {}
+        self.cache, self.grid_cache = {}, {}
 
     def _run(self, u, guesses):
         system, names, reparam = self.args
@@ -498,11 +498,10 @@ class _Evaluator:
 
     def _unstable(self, u, res, ok):
         """Slots whose orbit has a multiplier beyond ``1 - margin``."""
+        from ._peak import design_system
         from ._steady import steady_state
 
-        system, names, reparam = self.args
-        sysp = replace_params(system, dict(zip(names, np.asarray(reparam.forward(u)))),
-                              check=False)
+        sysp = design_system(*self.args, u)
         out = np.zeros(len(ok), bool)
         for j in np.flatnonzero(ok):
             ss = steady_state(sysp, Harmonic(amplitude=self.amplitude,
@@ -531,6 +530,45 @@ class _Evaluator:
         self.tracked = (w, np.where(ok[:, None], xn, x))
         return np.where(ok, a, 0.0), np.where(ok[:, None], g[:, 1:], 0.0), ok
 
+    def _grid(self, u):
+        """The design's grid pass at ``u`` (failed frequencies reseeded by marching), cached
+        by ``u``: the followed responses change between robust rounds, the grid does not."""
+        key = np.asarray(u).tobytes()
+        if key not in self.grid_cache:
+            res, amps, states, status = self._run(u, self.guesses)
+            if not np.all(status == Status.SUCCESS):
+                # Newton from the warm start (or the linear guess) failed somewhere: seed
+                # those frequencies from marching (march_then_shoot) and evaluate again
+                system, names, reparam = self.args
+                seeds = _reseed(system, names, reparam, u, self.omegas, self.amplitude,
+                                status, states, self.tol, self.newton_steps, self.cfg)
+                res, amps, states, status = self._run(u, jnp.asarray(seeds))
+            self.guesses = jnp.where(jnp.asarray(status == Status.SUCCESS)[:, None], states,
+                                     jnp.nan)
+            self.grid_cache = {key: (res, amps, states, status)}
+        return self.grid_cache[key]
+
+    def _exact_values(self, res):
+        """``(values, jacobian, ok)`` of the exact objective's constraints: the located
+        peaks, and every grid point too (a lower bound of the peak: a peak that no slot
+        tracks cannot rise unseen above the others).  A modal grid point that fails is no
+        information (no constraint); a uniform grid point or a slot that fails makes the
+        design unacceptable (``__call__``)."""
+        ok = np.concatenate([res["status"], res["grid_status"]]) == Status.SUCCESS
+        vals = np.concatenate([res["amplitudes"], res["grid_amplitude"]])
+        jac = np.concatenate([res["jac"], res["grid_jac"]])
+        seed_failed = np.zeros(len(vals), bool)
+        n = len(res["amplitudes"]) + len(self.omegas)
+        seed_failed[n:] = ~ok[n:]
+        return (np.where(seed_failed, 0.0, vals), np.where(seed_failed[:, None], 0.0, jac),
+                ok | seed_failed)
+
+    def plain_peak(self, u):
+        """The exact peak at ``u`` (slots and grid), without the followed responses and
+        without a history record."""
+        vals, _, ok = self._exact_values(self._grid(jnp.asarray(u, dtype=float))[0])
+        return float(np.max(vals[ok])) if ok.any() else math.nan
+
     def __call__(self, u, hist):
         """``(values, jacobian, ok)``: per slot for "exact_peak" (values (K,), jacobian (K, P)),
         else the objective as one slot.  Cached by ``u``."""
@@ -539,39 +577,20 @@ class _Evaluator:
         if key in self.cache:
             return self.cache[key]
         t = time.perf_counter()
-        res, amps, states, status = self._run(u, self.guesses)
-        if not np.all(status == Status.SUCCESS):
-            # Newton from the warm start (or the linear guess) failed somewhere: seed those
-            # frequencies from marching (march_then_shoot) and evaluate again
-            system, names, reparam = self.args
-            seeds = _reseed(system, names, reparam, u, self.omegas, self.amplitude, status,
-                            states, self.tol, self.newton_steps, self.cfg)
-            res, amps, states, status = self._run(u, jnp.asarray(seeds))
+        res, amps, states, status = self._grid(u)
         grid_ok = status == Status.SUCCESS
         if self.amps_before is None:
             self.amps_before = amps
-        self.guesses = jnp.where(jnp.asarray(grid_ok)[:, None], states, jnp.nan)
         unstable = None
         if self.exact:
-            # the located peaks, and every grid point as a constraint too (a lower bound of the
-            # peak): a peak that no slot tracks cannot rise unseen above the others
-            ok = np.concatenate([res["status"], res["grid_status"]]) == Status.SUCCESS
-            vals = np.concatenate([res["amplitudes"], res["grid_amplitude"]])
-            jac = np.concatenate([res["jac"], res["grid_jac"]])
-            # a modal grid point that fails is no information (no constraint); a uniform grid
-            # point or a slot that fails makes the design unacceptable (below)
-            F, K = len(self.omegas), len(res["amplitudes"])
-            seed_failed = np.zeros(len(vals), bool)
-            seed_failed[K + F:] = ~ok[K + F:]
-            vals, ok = np.where(seed_failed, 0.0, vals), ok | seed_failed
-            jac = np.where(seed_failed[:, None], 0.0, jac)
+            vals, jac, ok = self._exact_values(res)
+            K = len(res["amplitudes"])
             if self.tracked is not None:
                 a_t, j_t, ok_t = self._follow(u)
                 hist["tracked"].append(a_t.copy())
                 ok = np.concatenate([ok, ok_t])
                 vals, jac = np.concatenate([vals, a_t]), np.concatenate([jac, j_t])
             if self.margin is not None:
-                K = len(res["amplitudes"])
                 unstable = np.concatenate([self._unstable(u, res, ok[:K]),
                                            np.zeros(len(vals) - K, bool)])
                 hist["unstable"] += int(unstable.any())
@@ -692,6 +711,7 @@ def _robust_rounds(evaluate, band, u0, steps, hist, progress, callback, optimize
     the maps run again at the result and the followed set is rebuilt from them; the rounds
     end when the maps find nothing larger than the exact peak that is not followed, or after
     ``rounds``.  A response of longer period is reported, not followed."""
+    from ._peak import design_system
     from ._robust import stable_responses
 
     hist.update(tracked=[], rounds=[])
@@ -699,11 +719,9 @@ def _robust_rounds(evaluate, band, u0, steps, hist, progress, callback, optimize
     u = np.asarray(u0, dtype=float)
     followed = None
     for r in range(rounds + 1):
-        sysu = replace_params(system, dict(zip(names, np.asarray(reparam.forward(u)))),
-                              check=False)
+        sysu = design_system(system, names, reparam, u)
         found = stable_responses(sysu, band, float(evaluate.amplitude), **probe_kw)
-        evaluate.tracked, evaluate.cache = None, {}
-        plain = float(evaluate(u, hist)[3])
+        plain = evaluate.plain_peak(u)
         larger = [(w, a) for w, a in found
                   if a.period_multiple == 1 and a.amplitude > plain * (1 + 1e-3)]
         worst = max([plain] + [float(a.amplitude) for _, a in found])

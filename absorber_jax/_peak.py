@@ -266,7 +266,7 @@ def modal_seeds(system, lo, hi):
     J = jax.jacfwd(lambda s: system.vector_field(jnp.zeros(()), s, still))(rest)
     finite = jnp.all(jnp.isfinite(J))
     lam = jnp.linalg.eigvals(jnp.where(finite, J, 0.0))
-    lam = lax_top_imag(lam, system.num_states // 2)
+    lam = lam[jax.lax.top_k(jnp.imag(lam), system.num_states // 2)[1]]
     wd = jnp.abs(jnp.imag(lam))
     zeta = jnp.clip(-jnp.real(lam) / jnp.maximum(jnp.abs(lam), 1e-300), 0.0, 1.0)
     w = jnp.concatenate([wd * (1 - zeta), wd, wd * (1 + zeta)])
@@ -274,15 +274,21 @@ def modal_seeds(system, lo, hi):
     return jax.lax.stop_gradient(jnp.clip(w, lo, hi))
 
 
-def lax_top_imag(lam, k):
-    """The ``k`` eigenvalues with the largest imaginary parts."""
-    _, i = jax.lax.top_k(jnp.imag(lam), k)
-    return lam[i]
+def design_system(system, names, reparam, u):
+    """``system`` with the named parameters at ``reparam.forward(u)``."""
+    from ._params import replace_params
+
+    return replace_params(system, dict(zip(names, reparam.forward(u))), check=False)
 
 
-def n_seeds(system, modes):
-    """Number of modal grid points :func:`modal_seeds` adds (0 without ``modes``)."""
-    return 3 * (system.num_states // 2) if modes else 0
+def evaluate_many(system, names, reparam, u, omegas, amplitude, guesses, cfg, method):
+    """:func:`evaluate` at each of ``omegas`` from its guess (vmapped), for the design ``u``:
+    per frequency ``(A, [dA/dω, dA/du...], internal state, status)``."""
+    def system_at(v):
+        return design_system(system, names, reparam, v)
+
+    return jax.vmap(lambda w, g: evaluate(system_at, u, w, amplitude, g, cfg, method))(
+        omegas, guesses)
 
 
 @eqx.filter_jit
@@ -295,12 +301,8 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
     theorem).  ``guesses``: warm starts on ``omegas`` (the seeds start from the method's
     guess).  The ``grid_*`` outputs list ``omegas`` first, then the seeds.  One compilation
     per shape."""
-    from ._params import replace_params
-
-    forward = reparam.forward
-
     def system_at(v):
-        return replace_params(system, dict(zip(names, forward(v))), check=False)
+        return design_system(system, names, reparam, v)
 
     method = shooting_for_design(tol, newton_steps)
     grid_w, grid_g = omegas, guesses
@@ -309,8 +311,7 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
         grid_w = jnp.concatenate([omegas, seeds])
         grid_g = jnp.concatenate([guesses, jnp.full((seeds.shape[0], guesses.shape[1]),
                                                     jnp.nan, guesses.dtype)])
-    grid = jax.vmap(lambda w, g: evaluate(system_at, u, w, amplitude, g, cfg, method))(
-        grid_w, grid_g)
+    grid = evaluate_many(system, names, reparam, u, grid_w, amplitude, grid_g, cfg, method)
     amps, grads, states, status = grid
     order = jnp.argsort(grid_w)
     w_sorted = grid_w[order]

@@ -15,7 +15,6 @@ enters the value, with no gradient (``gradient`` then holds NaN).
 from __future__ import annotations
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -64,16 +63,11 @@ class RobustPeak(eqx.Module):
 def track(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps):
     """Responses followed by shooting from ``guesses`` (internal states) at fixed ``omegas``
     for the design ``u`` (``reparam.forward(u)`` gives the named parameters): per response
-    ``(A, [dA/dω, dA/du...], internal state, status)`` (vmapped :func:`evaluate`)."""
-    from ._params import replace_params
-    from ._peak import evaluate, shooting_for_design
+    ``(A, [dA/dω, dA/du...], internal state, status)``."""
+    from ._peak import evaluate_many, shooting_for_design
 
-    def system_at(v):
-        return replace_params(system, dict(zip(names, reparam.forward(v))), check=False)
-
-    method = shooting_for_design(tol, newton_steps)
-    return jax.vmap(lambda w, g: evaluate(system_at, u, w, amplitude, g, cfg, method))(
-        omegas, guesses)
+    return evaluate_many(system, names, reparam, u, omegas, amplitude, guesses, cfg,
+                         shooting_for_design(tol, newton_steps))
 
 
 def stable_responses(system, band, amplitude, *, probes, samples, spread=3.0, seed=0,

@@ -59,6 +59,9 @@ FORCING_PARAMETERS = ("omega", "amplitude")
 KINDS = ("fold", "period_doubling", "neimark_sacker")
 # the corrector stops once a Newton step is below STEP_TOL * tol (and the residual below tol)
 STEP_TOL = 10.0
+# a bifurcation is located when its bracket has shrunk to locate_tol and the test function
+# there is this small against its values at the bracket's first ends (else it jumps there)
+JUMP_TOL = 1e-3
 # a sharp turn of the tangent is accepted as a corner once the step is reduced this much
 CORNER_REDUCTION = 16.0
 
@@ -106,7 +109,9 @@ class Bifurcation(eqx.Module):
     located parameter value; ``amplitude``: the observable's amplitude there; ``state``:
     public orbit state; ``multipliers``: Floquet multipliers there; ``index``: it lies
     between branch points ``index`` and ``index + 1``; ``located``: the location converged
-    to ``locate_tol``; ``evaluations``: corrector solves spent locating it."""
+    to ``locate_tol`` onto a zero of the test function (False where the bracket closed on a
+    jump of it: a grazing corner, where the multipliers leap across the circle);
+    ``evaluations``: corrector solves spent locating it."""
 
     kind: str = eqx.field(static=True)
     value: float
@@ -411,6 +416,7 @@ class _Driver:
         best, evals, side = b, 1, 0
         if not (np.isfinite(glo) and np.isfinite(ghi)) or glo * ghi > 0:
             return best, evals, False
+        g_start = max(abs(glo), abs(ghi))
         converged = False
         while evals < 60:
             s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
@@ -433,8 +439,13 @@ class _Driver:
                 if side == -1:
                     glo *= 0.5
                 side = -1
-            if abs(hi - lo) <= self.method.locate_tol or gp == 0.0:
+            if gp == 0.0:
                 converged = True
+                break
+            if abs(hi - lo) <= self.method.locate_tol:
+                # a bracket shrunk onto a jump of the test function (a grazing corner,
+                # where the multipliers leap across the circle) is not a located zero
+                converged = min(abs(glo), abs(ghi)) <= JUMP_TOL * g_start
                 break
         return best, evals, converged
 

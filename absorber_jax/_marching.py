@@ -36,9 +36,18 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
         return jnp.maximum(jnp.max(jnp.abs(last), axis=1), jnp.max(jnp.abs(prev), axis=1))
 
     def body(c):
-        t, x, buf, d_prev, d_prev2, k, _, _, _ = c
+        t, x, buf, d_prev, d_prev2, k, _, _, _, best = c
         ts = t + T * jnp.arange(1, chunk + 1)
         ys, st = _integrate((system, forcing), x, t, ts[-1], ts, cfg.over_periods(chunk))
+        # the section sample closest to its own image one period later, in the second half
+        # of the budget (after the transient): where a response that never settles passes
+        # nearest a period-1 orbit, the start that a failed march hands to shooting
+        ret = jnp.max(jnp.abs(ys - jnp.concatenate([buf[-1:], ys[:-1]])), axis=1)
+        late = 2 * (k + 1) * chunk > max_periods
+        ret = jnp.where(late & jnp.all(jnp.isfinite(ys), axis=1), ret, jnp.inf)
+        i = jnp.argmin(ret)
+        best = jax.tree_util.tree_map(lambda a, b: jnp.where(ret[i] < best[0], a, b),
+                                      (ret[i], ys[i]), best)
         buf = jnp.concatenate([buf, ys])[-H:]
         d = distances(buf)
         # contraction per period, judged pessimistically over one and two chunks (the ratio
@@ -59,23 +68,28 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
         divides = (n_found % ns) == 0
         near = divides & (d <= jnp.maximum(50 * d_n, 10 * tol))
         n = jnp.where(found, ns[jnp.argmax(near)], 0)
-        return (ts[-1], ys[-1], buf, d, d_prev, k + 1, found, n, st)
+        return (ts[-1], ys[-1], buf, d, d_prev, k + 1, found, n, st, best)
 
     def cond(c):
-        _, _, _, _, _, k, found, _, st = c
+        _, _, _, _, _, k, found, _, st, _ = c
         return (~found) & (k * chunk < max_periods) & (st == Status.SUCCESS)
 
     buf0 = jnp.tile(x0[None], (H, 1)) + jnp.inf  # no history yet
     inf = jnp.full((n_max,), jnp.inf)
     c0 = (jnp.zeros(()), x0, buf0, inf, inf, jnp.zeros((), int), jnp.zeros((), bool),
-          jnp.zeros((), int), jnp.asarray(Status.SUCCESS))
-    t, x, buf, d, _, k, found, n, st = jax.lax.while_loop(cond, body, c0)
+          jnp.zeros((), int), jnp.asarray(Status.SUCCESS), (jnp.asarray(jnp.inf), x0))
+    t, x, buf, d, _, k, found, n, st, (_, x_best) = jax.lax.while_loop(cond, body, c0)
     # restart the orbit at phase 0 (t is a multiple of T; the forcing is T-periodic)
     periodic_like = jnp.min(d) < 1e3 * tol
     status = jnp.where(st != Status.SUCCESS, st,
                        jnp.where(found, Status.SUCCESS,
                                  jnp.where(periodic_like, Status.NO_CONVERGENCE,
                                            Status.NOT_PERIODIC)))
+    # a response that never came near periodic returns its closest return to a period-1
+    # orbit (a better start for shooting than wherever the budget ran out; a slow but
+    # periodic-like approach keeps its last state, the nearest to its limit)
+    wander = (st == Status.SUCCESS) & ~found & ~periodic_like
+    x = jnp.where(wander & jnp.all(jnp.isfinite(x_best)), x_best, x)
     n_eff = jnp.where(found, n, 1)
     res = jnp.where(found, d[n_eff - 1], jnp.min(d))
     system, forcing = dyn_in

@@ -33,6 +33,11 @@ class AbstractSteadyMethod(eqx.Module):
         that a chunk does not run at the pace of its slowest lane (default: itself)."""
         return self
 
+    def giving_up(self, steps):
+        """The method for a single solve that will be retried: it may stop early where its
+        iterations wander (default: itself)."""
+        return self
+
     def resume(self, budget):
         """The method that finishes, from their last iterate, the points still iterating
         after ``first_pass(budget)``; None when there is nothing to resume."""

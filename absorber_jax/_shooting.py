@@ -24,10 +24,29 @@ from ._orbit import _finish
 from ._status import Status
 
 
-def _root_solver(name, tol):
+class _GivingUpNewton(optx.Newton):
+    """Newton that also stops, unconverged, once ``give_up`` steps have left its residual
+    above ``far`` (max-norm): an iterate wandering that far after that many steps is not in
+    Newton's basin, and a solve that will be retried (marching then shooting) loses nothing
+    by stopping there."""
+
+    give_up: int = 8
+    far: float = 1e-2
+
+    def terminate(self, fn, y, args, options, state, tags):
+        done, result = super().terminate(fn, y, args, options, state, tags)
+        wander = (state.step >= self.give_up) & (self.norm(state.f) > self.far)
+        return done | wander, optx.RESULTS.where(
+            done, result, optx.RESULTS.where(wander, optx.RESULTS.nonlinear_divergence,
+                                             result))
+
+
+def _root_solver(name, tol, give_up=None):
     if name == "newton":
         # Newton with a minimum-norm (SVD) step: quadratic convergence, and the singular
         # Jacobian of a floating absorber's orbit family is handled by the pseudo-inverse
+        if give_up is not None:
+            return _GivingUpNewton(rtol=tol, atol=tol, linear_solver=lx.SVD(), give_up=give_up)
         return optx.Newton(rtol=tol, atol=tol, linear_solver=lx.SVD())
     if name == "chord":
         # the Jacobian of the first iterate reused (one monodromy per solve instead of one
@@ -40,7 +59,7 @@ def _root_solver(name, tol):
 
 
 def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_floquet=True,
-          root="newton"):
+          root="newton", give_up=None):
     """Shooting from the scaled guess ``x_guess`` for a period-``n`` orbit."""
 
     def residual(x, args):
@@ -55,7 +74,7 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
         # (the flow's tangents are finite: see _flow)
         return jnp.where(bad, jnp.zeros_like(x), xn - x)
 
-    solver = _root_solver(root, 0.1 * tol)
+    solver = _root_solver(root, 0.1 * tol, give_up)
     # gradients of the orbit by the implicit function theorem on the shooting residual
     # (forward mode; the minimum-norm SVD solve copes with a floating absorber's null space)
     adjoint = optx.ImplicitAdjoint(linear_solver=lx.SVD())
@@ -90,6 +109,10 @@ class Shooting(AbstractSteadyMethod):
       ``"lm"`` (Levenberg–Marquardt).
     - ``retry``: a failed solve is retried by marching from rest and polishing the marched
       orbit by shooting, before it is flagged.
+    - ``give_up``: with ``root="newton"``, stop after this many Newton steps if the scaled
+      residual is still above 1e-2 (an iterate wandering outside Newton's basin); None:
+      use the whole budget.  :func:`steady_state` sets 8 when it will retry, so that the
+      marching retry starts at once (LuGre with sigma0 = 1e8: 40 wandering steps cost 50 s).
     """
 
     n: int = eqx.field(static=True, default=1)
@@ -97,6 +120,7 @@ class Shooting(AbstractSteadyMethod):
     newton_steps: int = eqx.field(static=True, default=40)
     root: str = eqx.field(static=True, default="newton")
     retry: bool = eqx.field(static=True, default=True)
+    give_up: int | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not isinstance(self.n, int) or not 1 <= self.n <= 64:
@@ -106,12 +130,21 @@ class Shooting(AbstractSteadyMethod):
             raise ValueError("Shooting.newton_steps must be a positive integer, got "
                              f"{self.newton_steps!r}")
         _root_solver(self.root, 1.0)
+        if self.give_up is not None and (not isinstance(self.give_up, int)
+                                         or self.give_up < 1):
+            raise ValueError("Shooting.give_up must be None or a positive integer, got "
+                             f"{self.give_up!r}")
 
     def initial_state(self, system, forcing):
         return system.linear_guess(forcing)
 
     def first_pass(self, budget):
         return dataclasses.replace(self, newton_steps=min(self.newton_steps, budget))
+
+    def giving_up(self, steps):
+        if not self.retry or self.root != "newton" or self.give_up is not None:
+            return self
+        return dataclasses.replace(self, give_up=min(steps, self.newton_steps))
 
     def resume(self, budget):
         if self.newton_steps <= budget:
@@ -120,4 +153,5 @@ class Shooting(AbstractSteadyMethod):
 
     def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
         return shoot(system, forcing, x0, self.n, cfg, tol=self.tol,
-                     newton_steps=self.newton_steps, with_floquet=with_floquet, root=self.root)
+                     newton_steps=self.newton_steps, with_floquet=with_floquet, root=self.root,
+                     give_up=self.give_up)

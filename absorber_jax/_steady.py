@@ -120,9 +120,15 @@ def check_system_and_forcing(system, forcing, where="steady_state"):
                          f"got {type(forcing).__name__}")
 
 
+# Newton steps after which a single solve that will be retried gives up if its iterate is
+# still far from an orbit (Shooting.give_up): the marching retry starts at once
+GIVE_UP_NEWTON = 8
+
+
 @eqx.filter_jit
 def _steady_jit(system, forcing, guess, cfg, method, with_floquet):
-    res = solve_point(system, forcing, method, cfg, guess=guess, with_floquet=with_floquet)
+    res = solve_point(system, forcing, method.giving_up(GIVE_UP_NEWTON), cfg, guess=guess,
+                      with_floquet=with_floquet)
     if not method.retry:
         return res
     # a failed point is retried by marching then polishing (runs only when needed)

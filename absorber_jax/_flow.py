@@ -100,14 +100,15 @@ def _flow(dyn, x0, t1, ts, *, cfg):
     (or at ``t1`` only when ``ts`` is None), and the integrator's status; differentiable in
     forward *and* reverse mode (``jax.jacfwd``, ``jax.linearize``, ``jax.grad``).
 
-    Derivatives are forward sensitivities (:func:`_flow_forward`) with respect to the inputs
+    Derivatives are forward sensitivities (through diffrax ``ForwardMode``, or by
+    :func:`_sensitivity_jacobian`) with respect to the inputs
     that carry a tangent, assembled into a Jacobian, whose product with the tangent is
     linear in it: JAX transposes that product for reverse mode.  A design has a handful of
     parameters and the state a handful of components, so this costs what forward mode costs
     (one integration carrying ``len(x0) + #parameters`` tangents), with no backward
     integration or checkpointing, and reverse mode gives the same numbers as forward mode.
     """
-    return _flow_forward(dyn, x0, t1, ts, cfg=cfg)
+    return _integrate(dyn, x0, 0.0, t1, ts, cfg)
 
 
 def _flat_inputs(primals, tangents):
@@ -135,11 +136,13 @@ def _flat_inputs(primals, tangents):
 @_flow.def_jvp
 def _flow_jvp(primals, tangents, *, cfg):
     if all(t is None for t in jax.tree_util.tree_leaves(tangents, is_leaf=lambda a: a is None)):
-        return _flow_forward(*primals, cfg=cfg), (None, None)
+        dyn, x0, t1, ts = primals
+        return _integrate(dyn, x0, 0.0, t1, ts, cfg), (None, None)
     vec, rebuild, t_vec = _flat_inputs(primals, tangents)
 
     def states(v):
-        ys, status = _flow_forward(*rebuild(v), cfg=cfg)
+        dyn, x0, t1, ts = rebuild(v)
+        ys, status = _integrate(dyn, x0, 0.0, t1, ts, cfg)
         return ys, (ys, status)
 
     # the Jacobian depends on the primals only (jax.linearize evaluates it up front); the
@@ -159,15 +162,6 @@ def _flow_jvp(primals, tangents, *, cfg):
     return (ys, status), (jnp.tensordot(jac, t_vec, axes=1), None)
 
 
-def _flow_forward(dyn, x0, t1, ts, *, cfg):
-    """:func:`_flow` differentiated in forward mode.  An explicit solver is differentiated
-    through its steps (diffrax ``ForwardMode``: the state is integrated once, its tangents
-    ride along).  An implicit solver is not, see :func:`_flow_sensitivity`."""
-    if _by_sensitivities(dyn, cfg):
-        return _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
-    return _integrate(dyn, x0, 0.0, t1, ts, cfg)
-
-
 def _by_sensitivities(dyn, cfg):
     """Derivatives by sensitivity equations (implicit solvers, and explicit ones whose steps
     are controlled on the tangents), not through the solver's steps."""
@@ -180,8 +174,11 @@ def _sensitivity_jacobian(rebuild, vec, cfg, dyn_active):
     ``(dyn, x0, t1, ts)``) by the matrix sensitivity equations ``Ẋ_v = ∂f/∂x X_v + ∂f/∂v``,
     all ``m`` input directions integrated together with the state in one solve.
 
-    One solve, not one per direction (``jax.jacfwd`` of :func:`_flow_sensitivity`, which
-    integrates the state again with every tangent): the Floquet multipliers of the
+    Derivatives of the equations, not of the solver's internals: none passes through an
+    implicit solver's stage Newton solve (whose forward-mode derivative raises inside
+    lineax when a trial stage diverges, as on LuGre with sigma0 >= 1e6).  One solve, not
+    one per direction (``jax.jacfwd`` of a per-direction augmented solve, which integrated
+    the state again with every tangent, as before 2026-11-24): the Floquet multipliers of the
     256-point Table 1 sweep took 1.24 s that way, 0.43 s this way.  The steps are
     controlled as they were direction by direction: on the state only (implicit solvers),
     or (``tangent_control``) on the state together with the worst single direction.  The
@@ -221,52 +218,6 @@ def _sensitivity_jacobian(rebuild, vec, cfg, dyn_active):
     # a sensitivity integration that failed gives no derivative (the status flags the point)
     dys = jnp.where((status == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
     return dys, (ys, status)
-
-
-@eqx.filter_custom_jvp
-def _flow_sensitivity(dyn, x0, t1, ts, *, cfg):
-    """:func:`_flow` for implicit solvers.  Its derivatives (in ``x0``, the system's and
-    forcing's parameters and the times) are the forward sensitivity equations
-    ``δẋ = ∂f/∂x δx + ∂f/∂p δp``, integrated together with the state by the same solver
-    (steps controlled on the state), rather than derivatives of the solver's internals: no
-    derivative ever passes through an implicit solver's stage Newton solve (whose
-    forward-mode derivative raises inside lineax when a trial stage diverges, as on LuGre
-    with sigma0 >= 1e6).  Explicit solvers keep diffrax's ``ForwardMode``, which integrates
-    the state once for all tangent directions."""
-    return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, 0.0, t1, ts, cfg)
-
-
-@_flow_sensitivity.def_jvp
-def _flow_sensitivity_jvp(primals, tangents, *, cfg):
-    dyn, x0, t1, ts = primals
-    t_dyn, t_x0, t_t1, t_ts = tangents
-    # the primal comes from its own state-only solve: jax.linearize (Newton) needs primal
-    # outputs computable without the tangents
-    ys, status = _flow_sensitivity(dyn, x0, t1, ts, cfg=cfg)
-    t_x0 = jnp.zeros_like(x0) if t_x0 is None else t_x0
-
-    def augmented(t, y, a):
-        x, dx = y
-        # the sensitivity rate is linear in dx; its dependence on x is hidden from the
-        # implicit solver's Jacobian (stop_gradient), which is then block-diagonal: the
-        # second derivatives of the contact law (singular for Hertz at first contact) would
-        # otherwise stall the stage Newton iterations
-        _, df = eqx.filter_jvp(lambda x_, d_: _scaled_rate(d_, t, x_),
-                               (jax.lax.stop_gradient(x), dyn), (dx, t_dyn))
-        return _scaled_rate(dyn, t, x), df
-
-    # steps controlled on the state only: the sensitivities ride along, as in forward mode
-    # (explicit solvers with tangent_control: on the state and the tangents)
-    norm = optx.rms_norm if cfg.tangent_control else (lambda e: optx.rms_norm(e[0]))
-    (_, dys), st2 = _diffeqsolve(augmented, (x0, t_x0), 0.0, t1, ts, cfg, norm=norm)
-    # moving save times (they depend on the forcing period): add the state's rate there
-    t_save, t_times = (t1[None], t_t1) if ts is None else (ts, t_ts)
-    if t_times is not None:
-        f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)
-        dys = dys + f * jnp.reshape(t_times, (-1, 1))
-    # a sensitivity integration that failed gives no derivative (the status flags the point)
-    dys = jnp.where((st2 == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
-    return (ys, status), (dys, None)
 
 
 def period_map(system, forcing, x0, n, cfg: _Config, t0=0.0, *, n_cap=None):

@@ -44,8 +44,9 @@ def test_exact_peak_of_an_impact_absorber_matches_a_dense_grid_and_central_diffe
     np.testing.assert_allclose(w, grid_arg, rtol=1e-4)       # a flat maximum: ω* to ~dw^2
     # no grid point lies above it (frequency_response's parabolic extremes are ~1e-7 high)
     assert pk.value >= a.max() * (1 - 1e-6)
-    # the gradient against central differences of the exact peak itself
-    for name in ("k1", "c1"):
+    # the gradient against central differences of the exact peak itself (k1; the c1 gradient
+    # of the same envelope-theorem code is checked against the closed form on the TMD)
+    for name in ("k1",):
         p = float(aj.get_param(system, name))
         h = 1e-4 * p
         up = aj.exact_peak(aj.replace_params(system, {name: p + h}), (25.0, 45.0),
@@ -107,12 +108,16 @@ def _check_a_narrow_resonance_between_grid_points():
 
 def test_exact_peak_and_minimax_tuning_on_the_tmd():
     """The located peaks and their gradients against the closed form, a narrow resonance,
-    then the minimax tuning to the H-infinity optimum for mu = 0.05 and 0.2 (one process,
-    one compilation: the band is data)."""
+    then the minimax tuning to the H-infinity optimum for mu = 0.05 (mu = 0.2: the slow
+    test below)."""
     _check_peaks_and_gradients_against_the_closed_form()
     _check_a_narrow_resonance_between_grid_points()
-    for mu, band in ((0.05, (70.0, 130.0)), (0.2, (60.0, 140.0))):
-        _check_the_h_infinity_optimum(mu, band)
+    _check_the_h_infinity_optimum(0.05, (70.0, 130.0))
+
+
+@pytest.mark.slow  # CI time: ~1.5 min more; the same tuning as above at a heavier absorber
+def test_minimax_tuning_reaches_the_h_infinity_optimum_at_mu_0_2():
+    _check_the_h_infinity_optimum(0.2, (60.0, 140.0))
 
 
 def _check_the_h_infinity_optimum(mu, band):

@@ -15,7 +15,8 @@ Two families implement it: the paper's one-mass-one-absorber systems
   freedom [m or rad]), ``observable`` (the scalar signal that ``amplitude``, ``rms``,
   ``harmonic`` and the design objectives use), ``strokes`` (each absorber's motion relative
   to its host), ``floating_pairs`` (structural Floquet multipliers 1 of absorbers that never
-  touch anything);
+  touch anything), ``penetrations`` (each contact wall's signed penetration, for counting
+  impacts);
 - its named parameters: ``parameter_path`` and ``parameter_names``.
 """
 
@@ -127,6 +128,12 @@ class AbstractSystem(eqx.Module):
 
     def strokes(self, s):
         """Each absorber's displacement relative to its host (empty when none)."""
+        return jnp.zeros((0,), dtype=jnp.result_type(s))
+
+    def penetrations(self, s):
+        """Signed penetration [m] of each contact wall at internal state ``s`` (``> 0``
+        while that wall is closed), in a fixed order; empty when the system has no contact.
+        Impacts are counted from its sign changes (attractor statistics)."""
         return jnp.zeros((0,), dtype=jnp.result_type(s))
 
     def floating_pairs(self, stroke_max):

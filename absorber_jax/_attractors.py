@@ -4,10 +4,16 @@ settle on, and the statistics a designer needs for each, periodic or not.
 At one forcing, ``K`` initial states (sampled in a box around rest, or given) are marched in
 one vmapped call (:class:`Marching`: the Poincaré samples ``t = kT`` until they repeat with
 a period ``n <= n_max``).  Then every lane is integrated over a further window of
-``window`` periods from where it ended, sampled ``SAMPLES`` times per period: the largest
-``|observable|`` (``peak``), its RMS and half peak-to-peak over the window, and the spread of
+``window`` periods from where it ended, sampled ``S`` times per period (``S = SAMPLES``, or
+more for a system with contacts: see :func:`samples_per_period`): the largest
+``|observable|`` (``peak``), its RMS and half peak-to-peak over the window, the spread of
 the Poincaré samples (their largest distance from their mean, on the scaled state): zero
-for a periodic response, finite for a quasi-periodic or chaotic one.  Lanes are grouped into
+for a periodic response, finite for a quasi-periodic or chaotic one, and the impacts per
+period: the times a contact wall closes (``system.penetrations`` turning positive between
+two samples), counted over the window and divided by ``window``.  The sampling resolves a
+contact: ``S`` puts at least ``CONTACT_SAMPLES`` samples into the half period of the
+contact's own oscillation (``π / system.stiffness_rate()``, an upper bound on the rate, so a
+lower bound on the contact time).  Lanes are grouped into
 attractors by period multiple and window statistics; each attractor carries its share of the
 sampled initial states.  So a design has a number (the peak over the window) even where no
 periodic orbit is stable.
@@ -33,8 +39,12 @@ from ._orbit import SteadyState, _parabolic_peak
 from ._status import Status
 from ._steady import check_system_and_forcing, solve_point
 
-# samples per forcing period of the statistics window
+# samples per forcing period of the statistics window (at least)
 SAMPLES = 64
+# samples per shortest contact time (a half period of the contact's oscillation), and the cap
+# on the samples per forcing period that this asks for
+CONTACT_SAMPLES = 4
+MAX_SAMPLES = 2048
 # stroboscopic samples of the observable repeating to this fraction of its amplitude make a
 # period
 PERIOD_TOL = 1e-3
@@ -48,6 +58,7 @@ class Attractor(eqx.Module):
     that settled on it; ``amplitude``, ``rms``, ``peak``: the observable's half
     peak-to-peak, RMS and largest ``|value|`` over the window; ``spread``: the Poincaré
     samples' largest distance from their mean (scaled state; ~0 for an orbit);
+    ``impacts``: contact closures per forcing period over the window (0 without contact);
     ``converged``: marching's periodicity test passed for one of its members (not for a
     floating absorber's neutral family, whose position drifts slowly: its ``stable`` is then
     False, not proven); ``stable``: the Floquet label of that member; ``multipliers``;
@@ -62,6 +73,7 @@ class Attractor(eqx.Module):
     rms: float
     peak: float
     spread: float
+    impacts: float
     stable: bool = eqx.field(static=True)
     multipliers: np.ndarray
     state: np.ndarray
@@ -72,7 +84,7 @@ class Attractor(eqx.Module):
                     converged=self.converged,
                     share=float(self.share), amplitude=float(self.amplitude),
                     rms=float(self.rms), peak=float(self.peak), spread=float(self.spread),
-                    stable=self.stable, members=int(len(self.members)))
+                    impacts=float(self.impacts), stable=self.stable, members=int(len(self.members)))
 
 
 class AttractorMap(eqx.Module):
@@ -80,9 +92,9 @@ class AttractorMap(eqx.Module):
 
     ``steady``: the marching result per initial state (batched :class:`SteadyState`; status
     ``NOT_PERIODIC`` where the response never repeats); ``peak``, ``rms``, ``amplitude``,
-    ``spread``: window statistics per initial state; ``section``: the observable at
-    ``t = kT`` over the window (``(K, window)``: the stroboscopic samples a bifurcation
-    diagram plots); ``label``: the attractor index of each
+    ``spread``, ``impacts`` (per forcing period): window statistics per initial state;
+    ``section``: the observable at ``t = kT`` over the window (``(K, window)``: the
+    stroboscopic samples a bifurcation diagram plots); ``label``: the attractor index of each
     initial state; ``attractors``: the distinct :class:`Attractor` s, most frequent first."""
 
     omega: float
@@ -93,6 +105,7 @@ class AttractorMap(eqx.Module):
     rms: np.ndarray
     amplitude: np.ndarray
     spread: np.ndarray
+    impacts: np.ndarray
     section: np.ndarray
     label: np.ndarray
     attractors: tuple
@@ -103,26 +116,46 @@ class AttractorMap(eqx.Module):
                     attractors=[a.summary() for a in self.attractors])
 
 
+def samples_per_period(system, omega):
+    """Samples per forcing period of the statistics window: ``SAMPLES``, or for a system with
+    contacts enough to put ``CONTACT_SAMPLES`` samples into the shortest contact time
+    ``π / system.stiffness_rate()`` (a multiple of ``SAMPLES``, at most ``MAX_SAMPLES``)."""
+    if system.penetrations(system.rest_state()).shape[0] == 0:
+        return SAMPLES
+    rate = float(system.stiffness_rate())
+    need = 2.0 * CONTACT_SAMPLES * rate / float(omega) if np.isfinite(rate) else MAX_SAMPLES
+    return int(min(MAX_SAMPLES, SAMPLES * max(1, int(np.ceil(need / SAMPLES)))))
+
+
+def closures(pen):
+    """Times a wall closes in the samples ``pen`` (``(N, walls)`` penetrations): a sample
+    with positive penetration whose predecessor has none."""
+    closed = pen > 0
+    return jnp.sum(closed[1:] & ~closed[:-1])
+
+
 @eqx.filter_jit
-def _march_all(system, forcing, x0s, cfg, method, window):
+def _march_all(system, forcing, x0s, cfg, method, window, samples):
     scale = state_scale(system, forcing)
     T = 2 * jnp.pi / forcing.omega
-    ts = jnp.arange(window * SAMPLES) * (T / SAMPLES)
+    ts = jnp.linspace(0.0, window * T, window * samples + 1)   # ends on t1 exactly
 
     def lane(x0):
         ss = solve_point(system, forcing, method, cfg, guess=x0)
         x = system.to_internal(ss.state) / scale
         ys, st = _flow((system, forcing), x, window * T, ts, cfg=cfg.over_periods(window))
         s = ys * scale
+        impacts = closures(jax.vmap(system.penetrations)(s)) / window
+        s, ys = s[:-1], ys[:-1]
         obs = jax.vmap(system.observable)(s)
-        sec = ys[::SAMPLES]
+        sec = ys[::samples]
         spread = jnp.max(jnp.linalg.norm(sec - jnp.mean(sec, axis=0), axis=1))
         hi = _parabolic_peak(obs, jnp.argmax(obs))
         lo = _parabolic_peak(obs, jnp.argmin(obs))
         # the period seen in the window: the smallest n whose stroboscopic samples of the
         # observable repeat to PERIOD_TOL of its amplitude (a floating absorber's orbit
         # family settles too slowly for marching's tail test, but repeats here)
-        osec = obs[::SAMPLES]
+        osec = obs[::samples]
         ns = jnp.arange(1, method.n_max + 1)
         d = jnp.stack([jnp.max(jnp.abs(osec[n:] - osec[:-n]))
                        for n in range(1, method.n_max + 1)])
@@ -134,8 +167,9 @@ def _march_all(system, forcing, x0s, cfg, method, window):
                  jnp.where(ok, jnp.sqrt(jnp.mean(obs**2)), nan),
                  jnp.where(ok, 0.5 * (hi - lo), nan),
                  jnp.where(ok, spread, nan),
-                 jnp.where(ok, obs[::SAMPLES], nan),
-                 jnp.where(ok, period, -1))
+                 jnp.where(ok, obs[::samples], nan),
+                 jnp.where(ok, period, -1),
+                 jnp.where(ok, impacts, nan))
         return ss, stats
 
     return jax.vmap(lane)(x0s)
@@ -172,12 +206,14 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     """
     require_x64("attractors")
     check_system_and_forcing(system, forcing, "attractors")
-    for name, v, lo in (("samples", samples, 1), ("window", window, 2)):
+    method = Marching(n_max=n_max, max_periods=max_periods, tol=tol)
+    # the window must show a period-n_max orbit repeating at least once
+    for name, v, lo in (("samples", samples, 1), ("window", window, max(2, n_max + 1))):
         if not isinstance(v, int) or v < lo:
-            raise ValueError(f"attractors: {name} must be an integer >= {lo}, got {v!r}")
+            raise ValueError(f"attractors: {name} must be an integer >= {lo}"
+                             + (" (n_max + 1)" if name == "window" else "") + f", got {v!r}")
     check_scalar("attractors", "spread", spread, lo=0.0, lo_open=True)
     check_scalar("attractors", "rel_tol", rel_tol, lo=0.0, hi=1.0, lo_open=True)
-    method = Marching(n_max=n_max, max_periods=max_periods, tol=tol)
     if initial_states is None:
         y0 = _sample_states(system, forcing, samples, float(spread), seed)
     else:
@@ -189,10 +225,10 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
             raise ValueError("initial_states must be finite")
     cfg = make_config(system, forcing, solver, rtol, atol, max_steps)
     x0s = jnp.stack([system.to_internal(jnp.asarray(y)) for y in y0])
-    ss, (peak, rms, amp, spr, sec, per) = _march_all(system, forcing, x0s, cfg, method,
-                                                     int(window))
+    ss, stats = _march_all(system, forcing, x0s, cfg, method, int(window),
+                           samples_per_period(system, forcing.omega))
     ss = jax.tree_util.tree_map(np.asarray, ss)
-    peak, rms, amp, spr, sec, per = (np.asarray(a) for a in (peak, rms, amp, spr, sec, per))
+    peak, rms, amp, spr, sec, per, imp = (np.asarray(a) for a in stats)
     label, groups = _group(per, amp, rms, rel_tol)
     found = []
     K = y0.shape[0]
@@ -205,12 +241,13 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
             periodic=periodic, period_multiple=int(per[i]), converged=bool(conv),
             share=len(g) / K, amplitude=float(np.median(amp[g])), rms=float(np.median(rms[g])),
             peak=float(np.max(peak[g])), spread=float(np.max(spr[g])),
-            stable=bool(ss.stable[i]),
+            impacts=float(np.median(imp[g])), stable=bool(ss.stable[i]),
             multipliers=np.asarray(ss.multipliers[i]), state=np.asarray(ss.state[i]),
             members=np.asarray(g)))
     return AttractorMap(omega=float(forcing.omega), amplitude_F0=float(forcing.amplitude),
                         initial_states=y0, steady=ss, peak=peak, rms=rms, amplitude=amp,
-                        spread=spr, section=sec, label=label, attractors=tuple(found))
+                        spread=spr, impacts=imp, section=sec, label=label,
+                        attractors=tuple(found))
 
 
 def _group(per, amp, rms, rel_tol):

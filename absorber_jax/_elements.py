@@ -84,6 +84,11 @@ class AbstractElement(eqx.Module):
         """Its absorber's displacement relative to the host (empty if not an absorber)."""
         return _zeros(0, z)
 
+    def penetrations(self, x, v, z):
+        """Signed penetration [m] of each of its contact walls (``> 0``: closed); empty
+        when it has none."""
+        return _zeros(0, x)
+
     def floats(self, stroke_max):
         """1 when its absorber floats free on an orbit within ``stroke_max``, else 0."""
         return jnp.zeros((), int)
@@ -267,6 +272,9 @@ class ImpactDamper(_Absorber):
         fr, _, _ = self.contact.wall_force(u - self.gap, w)
         fl, _, _ = self.contact.wall_force(-u - self.gap, -w)
         return fr - fl, _zeros(0, u)
+
+    def penetrations(self, x, v, z):
+        return jnp.stack([z[0] - self.gap, -z[0] - self.gap])
 
     def coupling_energy(self, u, z):
         return (self.contact.potential(jnp.maximum(u - self.gap, 0.0))
@@ -454,6 +462,9 @@ class Contact(AbstractElement):
         if self.sides == "two":
             walls.append((-r - self.gap, -rd, -1.0))
         return walls
+
+    def penetrations(self, x, v, z):
+        return jnp.stack([p for p, _, _ in self._walls(x, v)])
 
     def evaluate(self, x, v, z):
         f = sum(sgn * self.contact.wall_force(p, pd)[0] for p, pd, sgn in self._walls(x, v))

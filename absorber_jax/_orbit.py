@@ -8,7 +8,10 @@ chosen degree of freedom or weighted set of a :class:`StructuralSystem`): ``ampl
 half peak-to-peak; ``rms`` = RMS about zero; ``harmonic`` = magnitude of its component at the
 forcing frequency; ``dof_amplitude``, ``dof_rms``, ``dof_harmonic`` the same at each of the
 system's ``output_names``; ``absorber_amplitude`` and ``absorber_rms`` the same for the
-absorber's motion relative to its host (``x2 - x1``; the largest over several absorbers).
+absorber's motion relative to its host (``x2 - x1``; the largest over several absorbers);
+``impacts``: contact closures per forcing period (``system.penetrations`` turning positive
+between consecutive samples, around the closed orbit, divided by ``n``; 0 without contacts):
+resolved for contacts lasting more than a few samples, ``T / 64`` at period 1.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ class SteadyState(eqx.Module):
     harmonic: jax.Array
     absorber_amplitude: jax.Array
     absorber_rms: jax.Array
+    impacts: jax.Array
     dof_amplitude: jax.Array
     dof_rms: jax.Array
     dof_harmonic: jax.Array
@@ -124,9 +128,12 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     u = jax.vmap(system.strokes)(s)                                   # (N, absorbers)
     u_amp, u_rms, _ = jax.vmap(stats_of, in_axes=1)(u)
     most = (lambda a: jnp.max(a)) if u.shape[1] else (lambda a: jnp.zeros((), s.dtype))
+    pen = jax.vmap(system.penetrations)(s)
+    closed = pen > 0                                                  # (N, walls), cyclic
+    impacts = jnp.sum(closed & ~jnp.roll(closed, 1, axis=0)) / n
     stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
-                 absorber_rms=most(u_rms), dof_amplitude=d_amp, dof_rms=d_rms,
-                 dof_harmonic=d_harm)
+                 absorber_rms=most(u_rms), impacts=impacts.astype(s.dtype),
+                 dof_amplitude=d_amp, dof_rms=d_rms, dof_harmonic=d_harm)
     return stats, st, jnp.max(jnp.abs(u), axis=0)
 
 

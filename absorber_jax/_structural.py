@@ -395,6 +395,14 @@ class StructuralSystem(AbstractSystem):
         parts = [e.strokes(s[o:o + e.num_states]) for _, e, o in self._absorbers()]
         return jnp.concatenate(parts) if parts else jnp.zeros((0,), s.dtype)
 
+    def penetrations(self, s):
+        Phi = self.structure.dof_map
+        q, qd, zs = self._pieces(s)
+        x, v = Phi @ q, Phi @ qd
+        parts = [e.penetrations(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
+                 for e, (ia, ib), z in zip(self.elements, self._dofs(), zs)]
+        return jnp.concatenate(parts) if parts else jnp.zeros((0,), s.dtype)
+
     def floating_pairs(self, stroke_max):
         counts = [e.floats(stroke_max[i:i + 1]) for i, (_, e, _) in
                   enumerate(self._absorbers())]

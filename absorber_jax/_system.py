@@ -251,6 +251,10 @@ class ImpactAbsorber(AbstractAbsorberSystem):
     def absorber_mass(self):
         return self.m
 
+    def penetrations(self, s):
+        """``(u - gap, -u - gap)`` with ``u = x2 - x1``: the right and left walls [m]."""
+        return jnp.stack([s[2] - self.gap, -s[2] - self.gap])
+
     def walls(self, u, w):
         """``((f+, δ+, δ̇+), (f-, δ-, δ̇-))`` at the right and left walls."""
         return (

@@ -27,9 +27,11 @@ def _assemble(out_t, out_s):
     return ys[idx, 0], ys[idx, 2]
 
 
-def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0)):
+def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0),
+                        impacts=None):
     """Piecewise-linear impact oscillator: free flight for |y| < d, the Kelvin–Voigt law
-    (adhesive, as the paper's) at the wall being penetrated.  Returns x1, x2 at t_eval."""
+    (adhesive, as the paper's) at the wall being penetrated.  Returns x1, x2 at t_eval; the
+    times a wall is hit (located events) are appended to the list ``impacts`` if given."""
 
     def rhs(mode):
         def f(t, s):
@@ -72,6 +74,8 @@ def impact_kelvin_voigt(M, k, c, m, d, k1, c1, F0, omega, t_eval, y0=(0, 0, 0, 0
             mode = 0  # left the wall
         else:
             mode = 1 if sol.t_events[0].size else -1  # hit the right / left wall
+            if impacts is not None:
+                impacts.append(t_end)
         t = t_end
     return _assemble(out_t, out_s)
 

@@ -9,12 +9,14 @@ import references as R
 from test_structural import nlvib03
 
 import absorber_jax as aj
+from absorber_jax._attractors import samples_per_period
 
 
 def test_table1_at_55_finds_the_period_5_orbit_and_the_floating_period_1_orbit():
     """Table 1 at 55 rad/s: the attractor map finds both coexisting responses: the
-    period-5 impacting orbit (x1 amplitude against an event-exact march, 1e-3) and the
-    floating period-1 orbit (the primary alone, closed form, 1e-5), with shares adding to 1."""
+    period-5 impacting orbit (x1 amplitude against an event-exact march, 1e-3; impacts per
+    period equal to the event-exact march's wall hits) and the floating period-1 orbit (the
+    primary alone, closed form, 1e-5; no impact), with shares adding to 1."""
     system, forcing = aj.presets.impact("kelvin_voigt", omega=55.0)
     m = aj.attractors(system, forcing, samples=16, n_max=6, max_periods=1200)
     found = {a.period_multiple: a for a in m.attractors}
@@ -25,12 +27,18 @@ def test_table1_at_55_finds_the_period_5_orbit_and_the_floating_period_1_orbit()
     # period 5: event-exact (nonsmooth) march from rest, the last 5 periods of 400
     T = 2 * np.pi / 55.0
     tt = np.linspace(395 * T, 400 * T, 20001)
+    hits = []
     x1, _ = R.impact_kelvin_voigt(1.0, 1e3, 0.1, 0.4, 1e-3, 400.0, 20.0, 2.0, 55.0,
-                                  np.concatenate([[0.0], tt]))
+                                  np.concatenate([[0.0], tt]), impacts=hits)
     amp5 = 0.5 * np.ptp(x1[1:])
     p5, p1 = found[5], found[1]
     assert abs(p5.amplitude - amp5) < 1e-3 * amp5
     assert p5.periodic and p5.converged and p5.stable
+    hits = np.asarray(hits)
+    per5 = np.sum((hits >= 395 * T) & (hits < 400 * T)) / 5
+    print(f"impacts per period: {p5.impacts} (event-exact {per5}), floating {p1.impacts}")
+    assert per5 > 0 and p5.impacts == pytest.approx(per5, abs=1e-12)
+    assert p1.impacts == 0.0
     # its stroboscopic samples take 5 distinct values, repeating
     sec = m.section[p5.members[0]]
     assert np.max(np.abs(sec[5:] - sec[:-5])) < 1e-6 * p5.amplitude
@@ -81,5 +89,29 @@ def test_bad_input_is_named():
         aj.attractors(system, forcing, spread=-1.0)
     with pytest.raises(ValueError, match="Marching.n_max"):
         aj.attractors(system, forcing, n_max=0)
+    with pytest.raises(ValueError, match=r"window must be an integer >= 7 \(n_max \+ 1\)"):
+        aj.attractors(system, forcing, n_max=6, window=6)
     with pytest.raises(ValueError, match="omegas"):
         aj.bifurcation_diagram(system, forcing, [-1.0])
+
+
+def test_impacts_of_a_hard_contact_are_counted_against_an_event_exact_reference():
+    """A hard Kelvin–Voigt contact (1e6 N/m, contact time ~3 ms against a 157 ms period) at
+    40 rad/s, where no periodic orbit is stable: each lane's impacts over a window of 2
+    periods equal the wall hits of an event-exact march from the same state (the response is
+    chaotic: the smoothed and the exact contact drift apart after ~2 periods; sampled at the
+    plain 64 per period, the count over 40 periods was 30 % low)."""
+    system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3,
+                               contact=aj.KelvinVoigt(stiffness=1e6, damping=20.0))
+    w = 40.0
+    assert samples_per_period(system, w) >= 256
+    m = aj.attractors(system, aj.Harmonic(amplitude=2.0, omega=w), samples=3, n_max=1,
+                      max_periods=200, window=2)
+    T = 2 * np.pi / w
+    for k in range(3):
+        hits = []
+        R.impact_kelvin_voigt(1.0, 1e3, 0.1, 0.4, 1e-3, 1e6, 20.0, 2.0, w,
+                              np.array([0.0, 2 * T]), y0=tuple(m.steady.state[k]),
+                              impacts=hits)
+        print(f"lane {k}: {m.impacts[k] * 2:.0f} impacts in 2 periods (event-exact {len(hits)})")
+        assert len(hits) >= 4 and m.impacts[k] * 2 == len(hits)

@@ -142,6 +142,24 @@ def test_failed_points_are_flagged_and_others_kept():
     assert all("converge" in t or "max_steps" in t for _, t in tight.failures() + one.failures())
 
 
+def test_impacts_per_period_equal_the_event_exact_wall_hits():
+    """Table 1 from 40 to 70 rad/s (the sweep of the test above: one compilation): the
+    impacts per period of each orbit equal the wall hits of the event-exact piecewise-linear
+    flow from the orbit's state over 10 periods; 2 on the impacting orbits, none where the
+    absorber floats."""
+    system, _ = aj.presets.impact("kelvin_voigt")
+    om = np.linspace(40.0, 70.0, 8)
+    fr = aj.frequency_response(system, om, amplitude=2.0)
+    assert np.all(fr.status == 0)
+    for i, w in enumerate(om):
+        hits = []
+        R.impact_kelvin_voigt(1.0, 1e3, 0.1, 0.4, 1e-3, 400.0, 20.0, 2.0, w,
+                              np.array([0.0, 20 * np.pi / w]), y0=tuple(fr.states[i]),
+                              impacts=hits)
+        assert fr.impacts[i] == len(hits) / 10, (w, fr.impacts[i], len(hits))
+    assert set(fr.impacts) == {0.0, 2.0}
+
+
 def test_design_grid_and_sequential_sweeps():
     system, _ = aj.presets.impact("kelvin_voigt", gap=0.0)
     om = np.linspace(30.0, 70.0, 6)

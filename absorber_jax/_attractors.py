@@ -13,7 +13,18 @@ period: the times a contact wall closes (``system.penetrations`` turning positiv
 two samples), counted over the window and divided by ``window``.  The sampling resolves a
 contact: ``S`` puts at least ``CONTACT_SAMPLES`` samples into the half period of the
 contact's own oscillation (``π / system.stiffness_rate()``, an upper bound on the rate, so a
-lower bound on the contact time).  Lanes are grouped into
+lower bound on the contact time).
+
+The largest Lyapunov exponent ``λ`` [1/s] tells a chaotic response (``λ > 0``) from a
+quasi-periodic one (``λ ≈ 0``) and a stable orbit (``λ = ln|μ|max / nT < 0``, ``μ`` its
+Floquet multipliers; ``≈ 0`` on a floating absorber's neutral family): a tangent vector
+carried period by period over the window by the flow's derivative (steps controlled on the
+tangent too), renormalised each period, its log growth averaged over the last
+``window - window // 4`` periods (the first quarter lets it align with the growing
+direction).  A non-periodic attractor is called chaotic when ``λ`` exceeds
+``CHAOS_MARGIN / (window T)``: a neutral direction (a floating absorber, the angle on a
+torus) grows at most polynomially, which biases the finite-window estimate by about
+``ln(4) / (0.75 window T)``; else quasi-periodic.  Lanes are grouped into
 attractors by period multiple and window statistics; each attractor carries its share of the
 sampled initial states.  So a design has a number (the peak over the window) even where no
 periodic orbit is stable.
@@ -32,7 +43,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, require_x64
-from ._flow import _flow, make_config, state_scale
+from ._flow import _flow, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic
 from ._marching import Marching
 from ._orbit import SteadyState, _parabolic_peak
@@ -45,6 +56,9 @@ SAMPLES = 64
 # on the samples per forcing period that this asks for
 CONTACT_SAMPLES = 4
 MAX_SAMPLES = 2048
+# a non-periodic response is chaotic when its largest Lyapunov exponent exceeds this many
+# 1 / (window T) (module docstring)
+CHAOS_MARGIN = 10.0
 # stroboscopic samples of the observable repeating to this fraction of its amplitude make a
 # period
 PERIOD_TOL = 1e-3
@@ -54,11 +68,15 @@ class Attractor(eqx.Module):
     """One response found by :func:`attractors`.
 
     ``periodic``: a period-``period_multiple`` orbit (else quasi-periodic or chaotic, or not
-    settled within the marching budget); ``share``: fraction of the sampled initial states
+    settled within the marching budget); ``kind``: ``"periodic"``, ``"quasi-periodic"`` or
+    ``"chaotic"`` (by ``lyapunov``, module docstring; ``"not periodic"`` when the exponent
+    could not be computed); ``share``: fraction of the sampled initial states
     that settled on it; ``amplitude``, ``rms``, ``peak``: the observable's half
     peak-to-peak, RMS and largest ``|value|`` over the window; ``spread``: the Poincaré
     samples' largest distance from their mean (scaled state; ~0 for an orbit);
     ``impacts``: contact closures per forcing period over the window (0 without contact);
+    ``lyapunov``: the largest Lyapunov exponent [1/s] over the window (module docstring;
+    the median over the members);
     ``converged``: marching's periodicity test passed for one of its members (not for a
     floating absorber's neutral family, whose position drifts slowly: its ``stable`` is then
     False, not proven); ``stable``: the Floquet label of that member; ``multipliers``;
@@ -66,6 +84,7 @@ class Attractor(eqx.Module):
     its initial states."""
 
     periodic: bool = eqx.field(static=True)
+    kind: str = eqx.field(static=True)
     period_multiple: int = eqx.field(static=True)
     converged: bool = eqx.field(static=True)
     share: float
@@ -74,17 +93,20 @@ class Attractor(eqx.Module):
     peak: float
     spread: float
     impacts: float
+    lyapunov: float
     stable: bool = eqx.field(static=True)
     multipliers: np.ndarray
     state: np.ndarray
     members: np.ndarray
 
     def summary(self):
-        return dict(periodic=self.periodic, period_multiple=self.period_multiple,
+        return dict(kind=self.kind, periodic=self.periodic,
+                    period_multiple=self.period_multiple,
                     converged=self.converged,
                     share=float(self.share), amplitude=float(self.amplitude),
                     rms=float(self.rms), peak=float(self.peak), spread=float(self.spread),
-                    impacts=float(self.impacts), stable=self.stable, members=int(len(self.members)))
+                    impacts=float(self.impacts), lyapunov=float(self.lyapunov),
+                    stable=self.stable, members=int(len(self.members)))
 
 
 class AttractorMap(eqx.Module):
@@ -92,7 +114,8 @@ class AttractorMap(eqx.Module):
 
     ``steady``: the marching result per initial state (batched :class:`SteadyState`; status
     ``NOT_PERIODIC`` where the response never repeats); ``peak``, ``rms``, ``amplitude``,
-    ``spread``, ``impacts`` (per forcing period): window statistics per initial state;
+    ``spread``, ``impacts`` (per forcing period), ``lyapunov`` [1/s]: window statistics per
+    initial state;
     ``section``: the observable at ``t = kT`` over the window (``(K, window)``: the
     stroboscopic samples a bifurcation diagram plots); ``label``: the attractor index of each
     initial state; ``attractors``: the distinct :class:`Attractor` s, most frequent first."""
@@ -106,6 +129,7 @@ class AttractorMap(eqx.Module):
     amplitude: np.ndarray
     spread: np.ndarray
     impacts: np.ndarray
+    lyapunov: np.ndarray
     section: np.ndarray
     label: np.ndarray
     attractors: tuple
@@ -132,6 +156,25 @@ def closures(pen):
     with positive penetration whose predecessor has none."""
     closed = pen > 0
     return jnp.sum(closed[1:] & ~closed[:-1])
+
+
+def largest_lyapunov(system, forcing, x, window, cfg):
+    """The largest Lyapunov exponent [1/s] over ``window`` periods from the scaled state
+    ``x`` (module docstring)."""
+    T = 2 * jnp.pi / forcing.omega
+    skip = window // 4
+    cfg_t = accurate_tangents(cfg)
+    v0 = jnp.ones_like(x) / jnp.sqrt(x.shape[0])
+
+    def period(c, k):
+        y, v, acc = c
+        yn, vn = jax.jvp(lambda z: period_map(system, forcing, z, 1, cfg_t)[0], (y,), (v,))
+        size = jnp.linalg.norm(vn)
+        acc = acc + jnp.where(k >= skip, jnp.log(size), 0.0)
+        return (yn, vn / size, acc), None
+
+    (_, _, acc), _ = jax.lax.scan(period, (x, v0, jnp.zeros((), x.dtype)), jnp.arange(window))
+    return acc / ((window - skip) * T)
 
 
 @eqx.filter_jit
@@ -161,6 +204,7 @@ def _march_all(system, forcing, x0s, cfg, method, window, samples):
                        for n in range(1, method.n_max + 1)])
         rep = d <= PERIOD_TOL * 0.5 * (hi - lo)
         period = jnp.where(jnp.any(rep), ns[jnp.argmax(rep)], 0)
+        lyap = largest_lyapunov(system, forcing, x, window, cfg)
         ok = (st == Status.SUCCESS) & jnp.all(jnp.isfinite(ys))
         nan = jnp.nan
         stats = (jnp.where(ok, jnp.maximum(hi, -lo), nan),
@@ -169,7 +213,8 @@ def _march_all(system, forcing, x0s, cfg, method, window, samples):
                  jnp.where(ok, spread, nan),
                  jnp.where(ok, obs[::samples], nan),
                  jnp.where(ok, period, -1),
-                 jnp.where(ok, impacts, nan))
+                 jnp.where(ok, impacts, nan),
+                 jnp.where(ok & jnp.isfinite(lyap), lyap, nan))
         return ss, stats
 
     return jax.vmap(lane)(x0s)
@@ -228,7 +273,7 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     ss, stats = _march_all(system, forcing, x0s, cfg, method, int(window),
                            samples_per_period(system, forcing.omega))
     ss = jax.tree_util.tree_map(np.asarray, ss)
-    peak, rms, amp, spr, sec, per, imp = (np.asarray(a) for a in stats)
+    peak, rms, amp, spr, sec, per, imp, lyap = (np.asarray(a) for a in stats)
     label, groups = _group(per, amp, rms, rel_tol)
     found = []
     K = y0.shape[0]
@@ -237,16 +282,21 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
         conv = [j for j in g if int(ss.status[j]) == Status.SUCCESS]
         i = conv[0] if conv else g[0]
         periodic = int(per[i]) > 0
+        lam = float(np.median(lyap[g]))
+        chaotic = lam > CHAOS_MARGIN * float(forcing.omega) / (2 * np.pi * window)
+        kind = ("periodic" if periodic else "not periodic" if not np.isfinite(lam)
+                else "chaotic" if chaotic else "quasi-periodic")
         found.append(Attractor(
-            periodic=periodic, period_multiple=int(per[i]), converged=bool(conv),
+            periodic=periodic, kind=kind, period_multiple=int(per[i]), converged=bool(conv),
             share=len(g) / K, amplitude=float(np.median(amp[g])), rms=float(np.median(rms[g])),
             peak=float(np.max(peak[g])), spread=float(np.max(spr[g])),
-            impacts=float(np.median(imp[g])), stable=bool(ss.stable[i]),
+            impacts=float(np.median(imp[g])), lyapunov=lam,
+            stable=bool(ss.stable[i]),
             multipliers=np.asarray(ss.multipliers[i]), state=np.asarray(ss.state[i]),
             members=np.asarray(g)))
     return AttractorMap(omega=float(forcing.omega), amplitude_F0=float(forcing.amplitude),
                         initial_states=y0, steady=ss, peak=peak, rms=rms, amplitude=amp,
-                        spread=spr, impacts=imp, section=sec, label=label,
+                        spread=spr, impacts=imp, lyapunov=lyap, section=sec, label=label,
                         attractors=tuple(found))
 
 

@@ -501,7 +501,7 @@ def cmd_attractors(args):
         wr = csv.writer(fh)
         wr.writerow(["omega", "sample", *[f"y0[{s}]" for s in system.state_names],
                      "attractor", "periodic", "period_multiple", "amplitude", "rms", "peak",
-                     "spread", "impacts_per_period", "marching_status"])
+                     "spread", "impacts_per_period", "lyapunov_per_s", "marching_status"])
         for m in maps:
             for k in range(m.label.shape[0]):
                 lab = int(m.label[k])
@@ -509,7 +509,7 @@ def cmd_attractors(args):
                 wr.writerow([m.omega, k, *m.initial_states[k], lab,
                              int(a.periodic) if a else "", a.period_multiple if a else "",
                              m.amplitude[k], m.rms[k], m.peak[k], m.spread[k],
-                             m.impacts[k], int(m.steady.status[k])])
+                             m.impacts[k], m.lyapunov[k], int(m.steady.status[k])])
     summary = {"scene": args.file or args.scene, "F0": amplitude, "set": sets, **opts,
                "maps": [m.summary() for m in maps], "time_s": time.perf_counter() - t0}
     with open(os.path.join(args.out, "summary.json"), "w") as fh:
@@ -529,7 +529,7 @@ def cmd_attractors(args):
         names = system.state_names
         for i, a in enumerate(m.attractors):
             sel = m.label == i
-            kind = f"period-{a.period_multiple}" if a.periodic else "not periodic"
+            kind = f"period-{a.period_multiple}" if a.periodic else a.kind
             ax.plot(m.initial_states[sel, 0], m.initial_states[sel, 1], "o", ms=5,
                     label=f"{kind}: amplitude {a.amplitude:.4g}, peak {a.peak:.4g}, "
                           f"{a.impacts:.3g} impacts/period ({100 * a.share:.0f} %)")

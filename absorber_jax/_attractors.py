@@ -232,7 +232,7 @@ def _sample_states(system, forcing, samples, spread, seed):
 def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None,
                samples=32, spread=3.0, seed=0, n_max=8, max_periods=2000, tol=1e-6,
                window=40, rel_tol=2e-3, solver=None, rtol=1e-9, atol=1e-9,
-               max_steps=200_000) -> AttractorMap:
+               max_steps=200_000, resolution=None) -> AttractorMap:
     """The distinct responses of ``system`` under ``forcing`` reached from many initial
     states (see the module docstring).
 
@@ -243,6 +243,8 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     - ``n_max``, ``max_periods``, ``tol``: the marching (period multiples recognised, budget
       in forcing periods, recurrence tolerance on the scaled state).
     - ``window``: periods of the statistics window after marching.
+    - ``resolution``: samples per forcing period over the window; default
+      :func:`samples_per_period` (enough to count the impacts of the stiffest contact).
     - ``rel_tol``: two lanes are one attractor when their period multiples agree and their
       window amplitude and RMS agree to ``rel_tol`` (non-periodic: 5 %).
     - ``solver``, ``rtol``, ``atol``, ``max_steps``: the integrator.
@@ -259,6 +261,11 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
                              + (" (n_max + 1)" if name == "window" else "") + f", got {v!r}")
     check_scalar("attractors", "spread", spread, lo=0.0, lo_open=True)
     check_scalar("attractors", "rel_tol", rel_tol, lo=0.0, hi=1.0, lo_open=True)
+    if resolution is None:
+        resolution = samples_per_period(system, forcing.omega)
+    elif not isinstance(resolution, int) or resolution < 2:
+        raise ValueError(f"attractors: resolution must be an integer >= 2 (samples per "
+                         f"period), got {resolution!r}")
     if initial_states is None:
         y0 = _sample_states(system, forcing, samples, float(spread), seed)
     else:
@@ -270,8 +277,7 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
             raise ValueError("initial_states must be finite")
     cfg = make_config(system, forcing, solver, rtol, atol, max_steps)
     x0s = jnp.stack([system.to_internal(jnp.asarray(y)) for y in y0])
-    ss, stats = _march_all(system, forcing, x0s, cfg, method, int(window),
-                           samples_per_period(system, forcing.omega))
+    ss, stats = _march_all(system, forcing, x0s, cfg, method, int(window), resolution)
     ss = jax.tree_util.tree_map(np.asarray, ss)
     peak, rms, amp, spr, sec, per, imp, lyap = (np.asarray(a) for a in stats)
     label, groups = _group(per, amp, rms, rel_tol)
@@ -330,8 +336,9 @@ def _group(per, amp, rms, rel_tol):
 
 def bifurcation_diagram(system, forcing, omegas, *, progress=False, **options):
     """Stroboscopic bifurcation diagram: :func:`attractors` at every ``ω`` in ``omegas``
-    (same initial states at each, one compilation).  Returns the list of
-    :class:`AttractorMap` s; plot with :func:`absorber_jax.plot_bifurcation_diagram`."""
+    (same initial states and window resolution at each, the one the lowest frequency needs:
+    one compilation).  Returns the list of :class:`AttractorMap` s; plot with
+    :func:`absorber_jax.plot_bifurcation_diagram`."""
     from tqdm.auto import tqdm
 
     om = np.asarray(omegas, dtype=float)
@@ -341,6 +348,8 @@ def bifurcation_diagram(system, forcing, omegas, *, progress=False, **options):
         options["initial_states"] = _sample_states(
             system, forcing, options.pop("samples", 32), float(options.pop("spread", 3.0)),
             options.pop("seed", 0))
+    if options.get("resolution") is None:
+        options["resolution"] = samples_per_period(system, float(om.min()))
     out = []
     for w in tqdm(om, desc="attractors", disable=not progress):
         out.append(attractors(system, Harmonic(amplitude=forcing.amplitude, omega=float(w)),

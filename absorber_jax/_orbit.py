@@ -103,21 +103,28 @@ def _half_p2p(y):
     return 0.5 * (_parabolic_peak(y, jnp.argmax(y)) - _parabolic_peak(y, jnp.argmin(y)))
 
 
-def sample_orbit(system, forcing, x0, n, cfg, n_cap=1):
+def sample_orbit(system, forcing, x0, n, cfg, n_cap=1, *, with_end=False):
     """Internal states ``s`` at ``SAMPLES_PER_PERIOD · n_cap`` uniform times ``ts`` over one
-    response period ``nT`` from scaled state ``x0``, and the integrator's status."""
+    response period ``nT`` from scaled state ``x0``, and the integrator's status; with
+    ``with_end``, also the scaled state at ``nT`` from the same integration (the period
+    map, for the residual: the steps are the same, the samples are interpolated)."""
     scale = state_scale(system, forcing)
     T = 2 * jnp.pi / forcing.omega
     N = SAMPLES_PER_PERIOD * n_cap
     ts = jnp.arange(N) * (n * T / N)
+    if with_end:
+        ys, st = _flow((system, forcing), x0, n * T, jnp.append(ts, n * T),
+                       cfg=cfg.over_periods(n_cap))
+        return ys[:-1] * scale, ts, st, ys[-1]
     ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg.over_periods(n_cap))
     return ys * scale, ts, st
 
 
 def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     """Amplitudes over one response period ``nT`` starting from scaled state ``x0``
-    (``n`` may be traced; ``n_cap`` is its static upper bound)."""
-    s, ts, st = sample_orbit(system, forcing, x0, n, cfg, n_cap)
+    (``n`` may be traced; ``n_cap`` is its static upper bound), the integrator's status, the
+    largest stroke per absorber and the scaled state at ``nT``."""
+    s, ts, st, end = sample_orbit(system, forcing, x0, n, cfg, n_cap, with_end=True)
     phase = jnp.exp(-1j * forcing.omega * ts)
 
     def stats_of(y):
@@ -134,7 +141,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
                  absorber_rms=most(u_rms), impacts=impacts.astype(s.dtype),
                  dof_amplitude=d_amp, dof_rms=d_rms, dof_harmonic=d_harm)
-    return stats, st, jnp.max(jnp.abs(u), axis=0)
+    return stats, st, jnp.max(jnp.abs(u), axis=0), end
 
 
 def floquet(system, forcing, x0, n, cfg, n_cap=None):
@@ -187,12 +194,18 @@ def _implicit_orbit_jvp(primals, tangents, *, cfg, n_cap):
 
 
 def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
-            n_cap=1, multipliers=None):
+            n_cap=1, multipliers=None, tol=None):
     """The :class:`SteadyState` of the scaled orbit state ``x`` (statistics, multipliers,
     stability); ``multipliers`` when the caller already has them (continuation: from the
-    Jacobian of its last corrector step)."""
+    Jacobian of its last corrector step).  With ``tol`` (shooting), ``residual`` and
+    ``status`` are not given but measured here: ``max |Φ_nT(x) - x|`` from the statistics'
+    own integration, SUCCESS when within ``tol``."""
     scale = state_scale(system, forcing)
-    stats, st2, stroke_max = orbit_statistics(system, forcing, x, n, cfg, n_cap)
+    stats, st2, stroke_max, end = orbit_statistics(system, forcing, x, n, cfg, n_cap)
+    if tol is not None:
+        residual = jnp.max(jnp.abs(end - x))
+        status = jnp.where(st2 != Status.SUCCESS, st2,
+                           jnp.where(residual <= tol, Status.SUCCESS, Status.NO_CONVERGENCE))
     if multipliers is not None:
         mult = multipliers.astype(complex)
     elif with_floquet:

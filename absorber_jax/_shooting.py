@@ -85,13 +85,10 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
     else:
         sol = optx.least_squares(residual, solver, x_guess, (system, forcing),
                                  max_steps=newton_steps, throw=False, adjoint=adjoint)
-    x = sol.value
-    xn, st = period_map(system, forcing, x, n, cfg)
-    res = jnp.max(jnp.abs(xn - x))
-    status = jnp.where(st != Status.SUCCESS, st,
-                       jnp.where(res <= tol, Status.SUCCESS, Status.NO_CONVERGENCE))
-    return _finish(system, forcing, x, n, cfg, status, res, sol.stats["num_steps"], with_floquet,
-                   n_cap=n)
+    # the residual at the solution comes from the statistics' integration of the orbit (one
+    # integration fewer: measured ~9 % of a vmapped Table 1 sweep)
+    return _finish(system, forcing, sol.value, n, cfg, None, None, sol.stats["num_steps"],
+                   with_floquet, n_cap=n, tol=tol)
 
 
 class Shooting(AbstractSteadyMethod):

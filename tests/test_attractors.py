@@ -117,6 +117,8 @@ def test_bad_input_is_named():
         aj.attractors(system, forcing, n_max=6, window=6)
     with pytest.raises(ValueError, match="omegas"):
         aj.bifurcation_diagram(system, forcing, [-1.0])
+    with pytest.raises(ValueError, match="resolution must be an integer >= 2"):
+        aj.attractors(system, forcing, resolution=1)
 
 
 def test_impacts_of_a_hard_contact_are_counted_against_an_event_exact_reference():

@@ -46,7 +46,7 @@ from ._checks import check_scalar, require_x64
 from ._flow import _flow, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic
 from ._marching import Marching
-from ._orbit import SteadyState, _parabolic_peak
+from ._orbit import SteadyState, _parabolic_peak, closures
 from ._status import Status
 from ._steady import check_system_and_forcing, solve_point
 
@@ -149,13 +149,6 @@ def samples_per_period(system, omega):
     rate = float(system.stiffness_rate())
     need = 2.0 * CONTACT_SAMPLES * rate / float(omega) if np.isfinite(rate) else MAX_SAMPLES
     return int(min(MAX_SAMPLES, SAMPLES * max(1, int(np.ceil(need / SAMPLES)))))
-
-
-def closures(pen):
-    """Times a wall closes in the samples ``pen`` (``(N, walls)`` penetrations): a sample
-    with positive penetration whose predecessor has none."""
-    closed = pen > 0
-    return jnp.sum(closed[1:] & ~closed[:-1])
 
 
 def largest_lyapunov(system, forcing, x, window, cfg):

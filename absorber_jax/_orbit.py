@@ -103,6 +103,16 @@ def _half_p2p(y):
     return 0.5 * (_parabolic_peak(y, jnp.argmax(y)) - _parabolic_peak(y, jnp.argmin(y)))
 
 
+def closures(pen, cyclic=False):
+    """Times a contact wall closes in the samples ``pen`` (``(N, walls)`` penetrations): a
+    sample with positive penetration whose predecessor has none (``cyclic``: the samples go
+    round a closed orbit, the last preceding the first)."""
+    closed = pen > 0
+    if cyclic:
+        return jnp.sum(closed & ~jnp.roll(closed, 1, axis=0))
+    return jnp.sum(closed[1:] & ~closed[:-1])
+
+
 def sample_orbit(system, forcing, x0, n, cfg, n_cap=1, *, with_end=False):
     """Internal states ``s`` at ``SAMPLES_PER_PERIOD · n_cap`` uniform times ``ts`` over one
     response period ``nT`` from scaled state ``x0``, and the integrator's status; with
@@ -135,9 +145,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     u = jax.vmap(system.strokes)(s)                                   # (N, absorbers)
     u_amp, u_rms, _ = jax.vmap(stats_of, in_axes=1)(u)
     most = (lambda a: jnp.max(a)) if u.shape[1] else (lambda a: jnp.zeros((), s.dtype))
-    pen = jax.vmap(system.penetrations)(s)
-    closed = pen > 0                                                  # (N, walls), cyclic
-    impacts = jnp.sum(closed & ~jnp.roll(closed, 1, axis=0)) / n
+    impacts = closures(jax.vmap(system.penetrations)(s), cyclic=True) / n
     stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
                  absorber_rms=most(u_rms), impacts=impacts.astype(s.dtype),
                  dof_amplitude=d_amp, dof_rms=d_rms, dof_harmonic=d_harm)

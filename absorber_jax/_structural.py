@@ -15,11 +15,13 @@ themselves for a matrix model, modal coordinates for a modal one).
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ._abstract_system import AbstractSystem
+from ._checks import is_traced
 from ._elements import AbstractElement
 from ._linear import finite_or_zero
 from ._structure import LinearStructure
@@ -46,6 +48,13 @@ def _weights(structure, value, field):
                          f"{{name: weight}} dict or an array of shape ({n},), got shape "
                          f"{arr.shape}")
     return arr
+
+
+def _all_diagonal(*mats) -> bool:
+    """Whether every matrix is (concretely) diagonal; False for traced ones."""
+    if any(is_traced(m) for m in mats):
+        return False
+    return all(not np.any(np.asarray(m) - np.diag(np.diag(np.asarray(m)))) for m in mats)
 
 
 class StructuralSystem(AbstractSystem):
@@ -79,6 +88,9 @@ class StructuralSystem(AbstractSystem):
     load: jax.Array
     observe: jax.Array
     mass_inverse: jax.Array
+    # mass, damping and stiffness all diagonal (a modal model): the equations of motion are
+    # then evaluated mode by mode (elementwise) instead of by matrix products
+    diagonal: bool = eqx.field(static=True, init=False)
 
     def __init__(self, structure, elements=(), *, load, observe=None, mass_inverse=None):
         if not isinstance(structure, LinearStructure):
@@ -108,6 +120,8 @@ class StructuralSystem(AbstractSystem):
         self.observe = _weights(structure, observe, "observe")
         self.mass_inverse = (jnp.linalg.inv(structure.mass) if mass_inverse is None
                              else jnp.asarray(mass_inverse, dtype=float))
+        self.diagonal = _all_diagonal(structure.mass, structure.damping, structure.stiffness,
+                                      self.mass_inverse)
         if sum(bool(e.exact) for e in elements) > 1:
             raise ValueError("StructuralSystem.elements: at most one friction damper with an "
                              "exact (event-driven) law; give the others an eps")
@@ -168,6 +182,19 @@ class StructuralSystem(AbstractSystem):
         return [(st.dof_index(e.dof), -1 if e.other is None else st.dof_index(e.other))
                 for e in self.elements]
 
+    def _used(self):
+        """The degrees of freedom the elements attach to (sorted), and each element's pair of
+        positions in that list (``-1``: ground)."""
+        dofs = self._dofs()
+        used = sorted({d for pair in dofs for d in pair if d >= 0})
+        return used, [(used.index(ia), used.index(ib) if ib >= 0 else -1) for ia, ib in dofs]
+
+    def _at_elements(self, y):
+        """``Φ y`` at the elements' degrees of freedom only (``y`` in the coordinates: ``q``,
+        ``q̇`` or ``q̈``): the rows of ``Φ`` nobody reads are never multiplied."""
+        used, _ = self._used()
+        return self.structure.dof_map[np.asarray(used, dtype=int)] @ y
+
     def _pieces(self, s):
         n = self.num_coords
         q, qd = s[:n], s[n:2 * n]
@@ -179,17 +206,23 @@ class StructuralSystem(AbstractSystem):
     def _pair(x, ia, ib):
         return jnp.stack([x[ia], x[ib] if ib >= 0 else jnp.zeros_like(x[ia])])
 
-    # -- dynamics ----------------------------------------------------------------------
-    def _forces(self, s, f_ext, exact_force=None, skip=None):
-        """DOF forces (load + elements) and each element's ``aux``; the exact element's
-        friction force is ``exact_force`` when given; element ``skip`` is left out."""
-        Phi = self.structure.dof_map
+    def _element_views(self, s):
+        """Per element ``(x_e, v_e, z_e)``: the displacements and velocities of its two
+        degrees of freedom (ground: 0) and its own states."""
         q, qd, zs = self._pieces(s)
-        x, v = Phi @ q, Phi @ qd
-        f = self.load * f_ext
+        xu, vu = self._at_elements(q), self._at_elements(qd)
+        _, pos = self._used()
+        return [(self._pair(xu, a, b), self._pair(vu, a, b), z) for (a, b), z in zip(pos, zs)]
+
+    # -- dynamics ----------------------------------------------------------------------
+    def _forces(self, views, exact_force=None, skip=None):
+        """The elements' forces at their degrees of freedom (a vector over ``_used``) and
+        each element's ``aux``; the exact element's friction force is ``exact_force`` when
+        given; element ``skip`` is left out."""
+        used, pos = self._used()
+        f = jnp.zeros((len(used),))
         auxes = []
-        for i, (e, (ia, ib), z) in enumerate(zip(self.elements, self._dofs(), zs)):
-            xe, ve = self._pair(x, ia, ib), self._pair(v, ia, ib)
+        for i, (e, (a, b), (xe, ve, z)) in enumerate(zip(self.elements, pos, views)):
             if exact_force is not None and i == self._exact_index():
                 fe, aux = e.evaluate_mode(xe, ve, z, exact_force)
             else:
@@ -197,33 +230,40 @@ class StructuralSystem(AbstractSystem):
             auxes.append(aux)
             if i == skip:
                 continue
-            f = f.at[ia].add(fe[0])
-            if ib >= 0:
-                f = f.at[ib].add(fe[1])
+            f = f.at[a].add(fe[0])
+            if b >= 0:
+                f = f.at[b].add(fe[1])
         return f, auxes
 
-    def _accelerations(self, s, f):
+    def _accelerations(self, s, f_used, f_ext):
+        """``q̈`` under the element forces ``f_used`` (at ``_used``) and the load ``F = f_ext``."""
         st = self.structure
         q, qd, _ = self._pieces(s)
-        return self.mass_inverse @ (st.dof_map.T @ f - st.damping @ qd - st.stiffness @ q)
+        used, _ = self._used()
+        rhs = (st.dof_map[np.asarray(used, dtype=int)].T @ f_used
+               + (self.load @ st.dof_map) * f_ext)
+        if self.diagonal:
+            return jnp.diagonal(self.mass_inverse) * (
+                rhs - jnp.diagonal(st.damping) * qd - jnp.diagonal(st.stiffness) * q)
+        return self.mass_inverse @ (rhs - st.damping @ qd - st.stiffness @ q)
 
     def _rate(self, s, f_ext, exact_force=None, stuck=None):
         """d/dt of ``s`` under the external force ``F = f_ext`` [N] (the exact element's
         friction force given, its sliding coordinates frozen when ``stuck``)."""
-        Phi = self.structure.dof_map
-        q, qd, zs = self._pieces(s)
-        x, v = Phi @ q, Phi @ qd
-        f, auxes = self._forces(s, f_ext, exact_force)
-        qdd = self._accelerations(s, f)
-        a = Phi @ qdd
+        views = self._element_views(s)
+        f, auxes = self._forces(views, exact_force)
+        qdd = self._accelerations(s, f, f_ext)
+        au = self._at_elements(qdd)
+        _, pos = self._used()
         rates = []
-        for i, (e, (ia, ib), z, aux) in enumerate(zip(self.elements, self._dofs(), zs, auxes)):
-            r = e.state_rate(self._pair(x, ia, ib), self._pair(v, ia, ib),
-                             self._pair(a, ia, ib), z, aux)
+        for i, (e, (a, b), (xe, ve, z), aux) in enumerate(zip(self.elements, pos, views,
+                                                               auxes)):
+            r = e.state_rate(xe, ve, self._pair(au, a, b), z, aux)
             if stuck is not None and i == self._exact_index():
                 r = jnp.where(stuck, e.stuck_rate(r), r)
             rates.append(r)
-        return jnp.concatenate([qd, qdd, *rates])
+        n = self.num_coords
+        return jnp.concatenate([s[n:2 * n], qdd, *rates])
 
     # -- exact stick–slip of one friction damper (modes 0 stick, ±1 slip with sign(V)) -----
     def _exact_index(self):
@@ -243,9 +283,10 @@ class StructuralSystem(AbstractSystem):
     def holding_force(self, t, s, forcing):
         """Friction force [N] that keeps the exact damper stuck to its host."""
         i, e, z, ia = self._exact(s)
-        f, _ = self._forces(s, forcing(t), exact_force=jnp.zeros(()), skip=i)
+        f_ext = forcing(t)
+        f, _ = self._forces(self._element_views(s), exact_force=jnp.zeros(()), skip=i)
         phi = self.structure.dof_map[ia]
-        a0 = phi @ self._accelerations(s, f)
+        a0 = phi @ self._accelerations(s, f, f_ext)
         return e.holding_friction(z, a0, phi @ self.mass_inverse @ phi)
 
     def _holding_mode(self, t, s, forcing):
@@ -291,11 +332,8 @@ class StructuralSystem(AbstractSystem):
 
     def element_forces(self, s):
         """Force [N] each element applies to its (first) degree of freedom."""
-        q, qd, zs = self._pieces(s)
-        Phi = self.structure.dof_map
-        x, v = Phi @ q, Phi @ qd
-        out = [e.evaluate(self._pair(x, ia, ib), self._pair(v, ia, ib), z)[0][0]
-               for e, (ia, ib), z in zip(self.elements, self._dofs(), zs)]
+        out = [e.evaluate(xe, ve, z)[0][0]
+               for e, (xe, ve, z) in zip(self.elements, self._element_views(s))]
         return jnp.stack(out) if out else jnp.zeros((0,), s.dtype)
 
     def trajectory_fields(self, ts, s, forcing):
@@ -303,21 +341,19 @@ class StructuralSystem(AbstractSystem):
 
     def mechanical_energy(self, s):
         st = self.structure
-        q, qd, zs = self._pieces(s)
-        x, v = st.dof_map @ q, st.dof_map @ qd
+        q, qd, _ = self._pieces(s)
         e = 0.5 * qd @ st.mass @ qd + 0.5 * q @ st.stiffness @ q
-        for el, (ia, ib), z in zip(self.elements, self._dofs(), zs):
-            e = e + el.energy(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
+        for el, (xe, ve, z) in zip(self.elements, self._element_views(s)):
+            e = e + el.energy(xe, ve, z)
         return e
 
     def power(self, t, s, forcing):
         st = self.structure
-        q, qd, zs = self._pieces(s)
-        x, v = st.dof_map @ q, st.dof_map @ qd
+        _, qd, _ = self._pieces(s)
         diss = qd @ st.damping @ qd
-        for el, (ia, ib), z in zip(self.elements, self._dofs(), zs):
-            diss = diss + el.dissipation(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
-        return forcing(t) * (self.load @ v), diss
+        for el, (xe, ve, z) in zip(self.elements, self._element_views(s)):
+            diss = diss + el.dissipation(xe, ve, z)
+        return forcing(t) * (self.load @ (st.dof_map @ qd)), diss
 
     # -- scales, guesses, solver hints ---------------------------------------------------
     def _host_masses(self):
@@ -396,11 +432,8 @@ class StructuralSystem(AbstractSystem):
         return jnp.concatenate(parts) if parts else jnp.zeros((0,), s.dtype)
 
     def penetrations(self, s):
-        Phi = self.structure.dof_map
-        q, qd, zs = self._pieces(s)
-        x, v = Phi @ q, Phi @ qd
-        parts = [e.penetrations(self._pair(x, ia, ib), self._pair(v, ia, ib), z)
-                 for e, (ia, ib), z in zip(self.elements, self._dofs(), zs)]
+        parts = [e.penetrations(xe, ve, z)
+                 for e, (xe, ve, z) in zip(self.elements, self._element_views(s))]
         return jnp.concatenate(parts) if parts else jnp.zeros((0,), s.dtype)
 
     def floating_pairs(self, stroke_max):

@@ -162,11 +162,21 @@ def _flow_jvp(primals, tangents, *, cfg):
     return (ys, status), (jnp.tensordot(jac, t_vec, axes=1), None)
 
 
+# Explicit solvers on systems with at least this many states take their derivatives from
+# the matrix sensitivity equations (one solve, the columns integrated together) rather than
+# from diffrax ForwardMode (the solve vmapped over the tangent directions): measured on a
+# 64-lane vmapped monodromy of the 44-state 20-DOF building of
+# scripts/benchmark_structure.py, 7.5 s -> 4.4 s (same steps, same numbers); on the 5-state
+# Table 1 impact absorber ForwardMode is a little faster (256 lanes: 56 vs 69 ms).
+SENSITIVITY_STATES = 12
+
+
 def _by_sensitivities(dyn, cfg):
-    """Derivatives by sensitivity equations (implicit solvers, and explicit ones whose steps
-    are controlled on the tangents), not through the solver's steps."""
+    """Derivatives by sensitivity equations (implicit solvers, explicit ones whose steps
+    are controlled on the tangents, and large states), not through the solver's steps."""
     implicit = isinstance(cfg.solver, diffrax.AbstractImplicitSolver)
-    return (implicit or cfg.tangent_control) and not dyn[0].hybrid
+    large = dyn[0].num_states >= SENSITIVITY_STATES
+    return (implicit or cfg.tangent_control or large) and not dyn[0].hybrid
 
 
 def _sensitivity_jacobian(rebuild, vec, cfg, dyn_active):

@@ -16,13 +16,17 @@ resolved for contacts lasting more than a few samples, ``T / 64`` at period 1.
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import lineax as lx
 import numpy as np
 
-from ._flow import _flat_inputs, _flow, accurate_tangents, period_map, state_scale
+from ._flow import (
+    SENSITIVITY_STATES, _flat_inputs, _flow, accurate_tangents, period_map, state_scale,
+)
 from ._status import Status
 
 SAMPLES_PER_PERIOD = 256
@@ -152,6 +156,15 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     return stats, st, jnp.max(jnp.abs(u), axis=0), end
 
 
+# The integration tolerance of a large state's monodromy (>= SENSITIVITY_STATES states)
+# need not be tighter than this.  Measured on 16 orbits of the 44-state building of
+# scripts/benchmark_structure.py against tangent-controlled rtol 1e-9: the six largest
+# |multipliers| within 7.5e-7 at 1e-6 (3.2e-8 at 1e-7), for 1.04 s instead of 1.63 s
+# (rtol 1e-7) and 3.92 s (1e-9); 1e-5 is 5e-5 off.  (Steps controlled on the state alone
+# at 1e-5 gave a spurious |mu| = 1.6e4: the tangent control is what keeps them right.)
+FLOQUET_RTOL = 1e-6
+
+
 def floquet(system, forcing, x0, n, cfg, n_cap=None):
     """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD); ``n``
     may be traced when ``n_cap`` (its static upper bound) is given."""
@@ -160,8 +173,12 @@ def floquet(system, forcing, x0, n, cfg, n_cap=None):
     system, forcing, x0 = _no_gradient((system, forcing, x0))
     # steps controlled on the tangents too: multipliers accurate to ~1e-6, not ~1e-3, across
     # stiff contacts (see accurate_tangents), so that stability labels near bifurcations hold
-    return jnp.linalg.eigvals(monodromy(system, forcing, x0, n, accurate_tangents(cfg),
-                                        n_cap=n_cap))
+    cfg = accurate_tangents(cfg)
+    if system.num_states >= SENSITIVITY_STATES:
+        # a large state's monodromy costs ~num_states integrations: at most FLOQUET_RTOL
+        cfg = dataclasses.replace(cfg, rtol=max(cfg.rtol, FLOQUET_RTOL),
+                                  atol=max(cfg.atol, FLOQUET_RTOL))
+    return jnp.linalg.eigvals(monodromy(system, forcing, x0, n, cfg, n_cap=n_cap))
 
 
 def monodromy(system, forcing, x0, n, cfg, n_cap=None):

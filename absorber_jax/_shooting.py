@@ -135,8 +135,17 @@ class Shooting(AbstractSteadyMethod):
     def initial_state(self, system, forcing):
         return system.linear_guess(forcing)
 
+    def _first_steps(self, budget):
+        # a chord step is one integration without tangents (~1/25 of a Newton step on the
+        # 44-state building of scripts/benchmark_structure.py) and converges linearly: its
+        # first pass takes 4x the Newton budget before a lane counts as a straggler (8x was
+        # slower: 19.7 -> 40.8 s on 64 points of that building, the lanes resumed with a
+        # fresh Jacobian converge in fewer steps than those left on the first one)
+        return budget * (4 if self.root == "chord" else 1)
+
     def first_pass(self, budget):
-        return dataclasses.replace(self, newton_steps=min(self.newton_steps, budget))
+        return dataclasses.replace(self, newton_steps=min(self.newton_steps,
+                                                          self._first_steps(budget)))
 
     def giving_up(self, steps):
         if not self.retry or self.root != "newton" or self.give_up is not None:
@@ -144,9 +153,10 @@ class Shooting(AbstractSteadyMethod):
         return dataclasses.replace(self, give_up=min(steps, self.newton_steps))
 
     def resume(self, budget):
-        if self.newton_steps <= budget:
+        used = self._first_steps(budget)
+        if self.newton_steps <= used:
             return None
-        return dataclasses.replace(self, newton_steps=self.newton_steps - budget)
+        return dataclasses.replace(self, newton_steps=self.newton_steps - used)
 
     def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
         return shoot(system, forcing, x0, self.n, cfg, tol=self.tol,

@@ -7,8 +7,9 @@ modal model (all 20 modes, observed at every floor) under a ground acceleration 
 eps = 1 mm/s, N = 300 N): 300 kg at the roof tuned to mode 1, 200 kg at floor 17 tuned to
 mode 2.  Band 0.7–1.4 ω1.  State: 40 modal + 4 damper states.
 
-- absorber_jax: ``frequency_response`` (vmapped Newton shooting, rtol = atol = 1e-7),
-  compile time reported apart;
+- absorber_jax: ``frequency_response`` (vmapped shooting, rtol = atol = 1e-7; ``--root
+  chord`` by default: one monodromy per solve, see ``Shooting``; ``--root newton`` for a
+  Jacobian per Newton step), compile time reported apart;
 - scipy: ``solve_ivp`` (DOP853, rtol 1e-8) of the same ODE in numpy, marched a period at a
   time until the Poincaré samples settle (``benchmark_sweep.march_until_settled``, 1e-4),
   on ``--scipy-points`` frequencies, its mean time per frequency extrapolated to 256.
@@ -17,7 +18,8 @@ Prints times, the speed ratio, the Newton iteration counts and the largest relat
 difference of the roof amplitude on the common frequencies; appends to BENCHMARKS.md with
 ``--out``.
 
-    python scripts/benchmark_structure.py [--points 256] [--scipy-points 4] [--out FILE]
+    python scripts/benchmark_structure.py [--points 256] [--scipy-points 4] [--root chord]
+                                          [--out FILE]
 """
 
 from __future__ import annotations
@@ -104,17 +106,18 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=256)
     ap.add_argument("--scipy-points", type=int, default=4)
+    ap.add_argument("--root", default="chord", choices=("chord", "newton"))
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
     system, w = scene()
     om = np.linspace(0.7 * w[0], 1.4 * w[0], a.points)
     t0 = time.perf_counter()
     # the first chunk alone, same shape: compiles once (the straggler batches compile too)
-    aj.frequency_response(system, om[:64], amplitude=F0, rtol=RTOL, atol=RTOL, chunk_size=64)
+    kw = dict(amplitude=F0, rtol=RTOL, atol=RTOL, chunk_size=64, root=a.root)
+    aj.frequency_response(system, om[:64], **kw)
     t_compile = time.perf_counter() - t0
     t0 = time.perf_counter()
-    fr = aj.frequency_response(system, om, amplitude=F0, rtol=RTOL, atol=RTOL, chunk_size=64,
-                               progress=True)
+    fr = aj.frequency_response(system, om, progress=True, **kw)
     t_jax = time.perf_counter() - t0
     idx = np.linspace(0, a.points - 1, a.scipy_points).round().astype(int)
     t0 = time.perf_counter()
@@ -123,9 +126,9 @@ def main():
     diff = max(abs(fr.amplitude[i] - s[0]) / s[0] for i, s in zip(idx, sp))
     lines = [
         f"## 20-DOF modal structure + 2 friction dampers, {a.points} frequencies",
-        f"- absorber_jax: {t_jax:.2f} s after compilation ({t_compile:.1f} s for the first "
+        f"- absorber_jax (root={a.root}): {t_jax:.2f} s after compilation ({t_compile:.1f} s for the first "
         f"chunk with compilation); {len(fr.failures())} failed, "
-        f"{int((~fr.stable).sum())} unstable; Newton steps median "
+        f"{int((~fr.stable).sum())} unstable; root-finder steps median "
         f"{np.median(fr.iterations):.0f}, max {fr.iterations.max()}",
         f"- scipy DOP853 marching: {t_sp:.1f} s extrapolated from {len(idx)} frequencies "
         f"(periods marched: {[s[1] for s in sp]})",

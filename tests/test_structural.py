@@ -3,6 +3,7 @@ steady states, sweeps and design, against independent references (closed-form re
 the event-exact piecewise-linear solution of NLvib's example 03 in reference_nlvib03.py, the
 two-mass systems of the paper, energy balance, central differences)."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -10,6 +11,7 @@ import reference_nlvib03 as ref
 from test_structure import MASSES, RAYLEIGH, STOREYS, TMDS
 
 import absorber_jax as aj
+from absorber_jax._flow import SENSITIVITY_STATES
 
 K03 = np.array([[1.0, -1.0], [-1.0, 2.0]])
 
@@ -129,6 +131,20 @@ def test_building_with_three_dampers_steady_states_equal_the_closed_form_recepta
             got = fr.dof(f"floor{j + 1}", "harmonic")
             np.testing.assert_allclose(got, X[:, j], rtol=1e-6)
         np.testing.assert_allclose(fr.amplitude, X[:, 2], rtol=1e-6)   # linear: p2p / 2
+        # linear: the monodromy is exp(A T), its multipliers exp(λ T) with λ the eigenvalues
+        # of the state matrix A (12 states: the large-state path, sensitivity Jacobians and
+        # monodromies at FLOQUET_RTOL)
+        assert sysm.num_states >= SENSITIVITY_STATES
+        rest = aj.Harmonic(amplitude=0.0, omega=1.0)
+        A = np.asarray(jax.jacfwd(lambda s, sysm=sysm: sysm.vector_field(0.0, s, rest))(
+            jnp.zeros(sysm.num_states)))
+        lam = np.linalg.eigvals(A)
+        for i, w in enumerate(om):
+            exact = np.exp(lam * 2 * np.pi / w)
+            got = np.asarray(fr.multipliers[i])
+            # every exact multiplier has a computed one next to it, and vice versa
+            d = np.abs(got[:, None] - exact[None, :])
+            assert max(d.min(axis=0).max(), d.min(axis=1).max()) < 1e-5, (w, d.min(axis=0))
 
 
 def _beam_with_tip_damper(N, law=None):

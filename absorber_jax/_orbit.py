@@ -25,7 +25,12 @@ import lineax as lx
 import numpy as np
 
 from ._flow import (
-    SENSITIVITY_STATES, _flat_inputs, _flow, accurate_tangents, period_map, state_scale,
+    SENSITIVITY_STATES,
+    _flat_inputs,
+    _flow,
+    accurate_tangents,
+    period_map,
+    state_scale,
 )
 from ._status import Status
 

@@ -126,8 +126,8 @@ def main():
     diff = max(abs(fr.amplitude[i] - s[0]) / s[0] for i, s in zip(idx, sp))
     lines = [
         f"## 20-DOF modal structure + 2 friction dampers, {a.points} frequencies",
-        f"- absorber_jax (root={a.root}): {t_jax:.2f} s after compilation ({t_compile:.1f} s for the first "
-        f"chunk with compilation); {len(fr.failures())} failed, "
+        f"- absorber_jax (root={a.root}): {t_jax:.2f} s after compilation "
+        f"({t_compile:.1f} s for the first chunk with compilation); {len(fr.failures())} failed, "
         f"{int((~fr.stable).sum())} unstable; root-finder steps median "
         f"{np.median(fr.iterations):.0f}, max {fr.iterations.max()}",
         f"- scipy DOP853 marching: {t_sp:.1f} s extrapolated from {len(idx)} frequencies "

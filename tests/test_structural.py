@@ -136,7 +136,7 @@ def test_building_with_three_dampers_steady_states_equal_the_closed_form_recepta
         # monodromies at FLOQUET_RTOL)
         assert sysm.num_states >= SENSITIVITY_STATES
         rest = aj.Harmonic(amplitude=0.0, omega=1.0)
-        A = np.asarray(jax.jacfwd(lambda s, sysm=sysm: sysm.vector_field(0.0, s, rest))(
+        A = np.asarray(jax.jacfwd(lambda s, sysm=sysm, rest=rest: sysm.vector_field(0.0, s, rest))(
             jnp.zeros(sysm.num_states)))
         lam = np.linalg.eigvals(A)
         for i, w in enumerate(om):

@@ -43,7 +43,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, require_x64
-from ._flow import _flow, accurate_tangents, make_config, period_map, state_scale
+from ._flow import flow_along, make_config, state_scale
 from ._forcing import Harmonic
 from ._marching import Marching
 from ._orbit import SteadyState, _parabolic_peak, closures
@@ -151,35 +151,39 @@ def samples_per_period(system, omega):
     return int(min(MAX_SAMPLES, SAMPLES * max(1, int(np.ceil(need / SAMPLES)))))
 
 
-def largest_lyapunov(system, forcing, x, window, cfg):
-    """The largest Lyapunov exponent [1/s] over ``window`` periods from the scaled state
-    ``x`` (module docstring)."""
+def window_statistics(system, forcing, x, window, samples, cfg):
+    """The scaled state over ``window`` periods from ``x``, ``samples`` per period
+    (``(window * samples + 1, n)``, both ends included), the integrator's status, and the
+    largest Lyapunov exponent [1/s] (module docstring): one integration carrying the
+    state and one tangent, period by period (the tangent renormalised each period)."""
     T = 2 * jnp.pi / forcing.omega
     skip = window // 4
-    cfg_t = accurate_tangents(cfg)
+    ts = T * jnp.arange(1, samples + 1) / samples
+    cfg_1 = cfg.over_periods(1)
     v0 = jnp.ones_like(x) / jnp.sqrt(x.shape[0])
 
     def period(c, k):
-        y, v, acc = c
-        yn, vn = jax.jvp(lambda z: period_map(system, forcing, z, 1, cfg_t)[0], (y,), (v,))
-        size = jnp.linalg.norm(vn)
+        y, v, acc, st = c
+        ys, vs, s = flow_along((system, forcing), y, v, T, ts, cfg_1)
+        size = jnp.linalg.norm(vs[-1])
         acc = acc + jnp.where(k >= skip, jnp.log(size), 0.0)
-        return (yn, vn / size, acc), None
+        st = jnp.where(st == Status.SUCCESS, s, st)
+        return (ys[-1], vs[-1] / size, acc, st), ys
 
-    (_, _, acc), _ = jax.lax.scan(period, (x, v0, jnp.zeros((), x.dtype)), jnp.arange(window))
-    return acc / ((window - skip) * T)
+    c0 = (x, v0, jnp.zeros((), x.dtype), jnp.asarray(Status.SUCCESS))
+    (_, _, acc, st), ys = jax.lax.scan(period, c0, jnp.arange(window))
+    ys = jnp.concatenate([x[None], ys.reshape(-1, x.shape[0])])
+    return ys, st, acc / ((window - skip) * T)
 
 
 @eqx.filter_jit
 def _march_all(system, forcing, x0s, cfg, method, window, samples):
     scale = state_scale(system, forcing)
-    T = 2 * jnp.pi / forcing.omega
-    ts = jnp.linspace(0.0, window * T, window * samples + 1)   # ends on t1 exactly
 
     def lane(x0):
         ss = solve_point(system, forcing, method, cfg, guess=x0)
         x = system.to_internal(ss.state) / scale
-        ys, st = _flow((system, forcing), x, window * T, ts, cfg=cfg.over_periods(window))
+        ys, st, lyap = window_statistics(system, forcing, x, window, samples, cfg)
         s = ys * scale
         impacts = closures(jax.vmap(system.penetrations)(s)) / window
         s, ys = s[:-1], ys[:-1]
@@ -197,7 +201,6 @@ def _march_all(system, forcing, x0s, cfg, method, window, samples):
                        for n in range(1, method.n_max + 1)])
         rep = d <= PERIOD_TOL * 0.5 * (hi - lo)
         period = jnp.where(jnp.any(rep), ns[jnp.argmax(rep)], 0)
-        lyap = largest_lyapunov(system, forcing, x, window, cfg)
         ok = (st == Status.SUCCESS) & jnp.all(jnp.isfinite(ys))
         nan = jnp.nan
         stats = (jnp.where(ok, jnp.maximum(hi, -lo), nan),
@@ -224,7 +227,7 @@ def _sample_states(system, forcing, samples, spread, seed):
 
 def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None,
                samples=32, spread=3.0, seed=0, n_max=8, max_periods=2000, tol=1e-6,
-               window=40, rel_tol=2e-3, solver=None, rtol=1e-9, atol=1e-9,
+               give_up=None, window=40, rel_tol=2e-3, solver=None, rtol=1e-9, atol=1e-9,
                max_steps=200_000, resolution=None) -> AttractorMap:
     """The distinct responses of ``system`` under ``forcing`` reached from many initial
     states (see the module docstring).
@@ -235,6 +238,11 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
       uniform in a box of ``±spread`` state scales around rest (``seed``).
     - ``n_max``, ``max_periods``, ``tol``: the marching (period multiples recognised, budget
       in forcing periods, recurrence tolerance on the scaled state).
+    - ``give_up``: periods after which a lane that is not settling stops marching
+      (:class:`Marching`; default ``max_periods // 4``): a map whose lanes are all chaotic
+      then costs a quarter of the budget.  ``give_up=max_periods`` marches every lane to the
+      end of the budget (a transient chaos longer than ``give_up`` periods that ends on a
+      periodic orbit is otherwise reported as not periodic).
     - ``window``: periods of the statistics window after marching.
     - ``resolution``: samples per forcing period over the window; default
       :func:`samples_per_period` (enough to count the impacts of the stiffest contact).
@@ -246,7 +254,9 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     """
     require_x64("attractors")
     check_system_and_forcing(system, forcing, "attractors")
-    method = Marching(n_max=n_max, max_periods=max_periods, tol=tol)
+    if give_up is None:
+        give_up = max(1, max_periods // 4) if isinstance(max_periods, int) else max_periods
+    method = Marching(n_max=n_max, max_periods=max_periods, tol=tol, give_up=give_up)
     # the window must show a period-n_max orbit repeating at least once
     for name, v, lo in (("samples", samples, 1), ("window", window, max(2, n_max + 1))):
         if not isinstance(v, int) or v < lo:

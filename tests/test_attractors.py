@@ -141,3 +141,28 @@ def test_impacts_of_a_hard_contact_are_counted_against_an_event_exact_reference(
                               impacts=hits)
         print(f"lane {k}: {m.impacts[k] * 2:.0f} impacts in 2 periods (event-exact {len(hits)})")
         assert len(hits) >= 4 and m.impacts[k] * 2 == len(hits)
+
+
+def test_marching_gives_up_only_on_responses_that_cannot_settle_within_the_budget():
+    """``Marching(give_up=100)`` on a lightly damped linear oscillator (1 DOF, ω_n = 1,
+    forced at 1.3 rad/s): the transient decays by ρ = exp(-ζ ω_n T) per period.  With
+    ζ = 3.1e-3 (ρ = 0.985, ~920 periods to 1e-6) the march still runs to convergence,
+    period for period as without give_up, on the closed-form amplitude; with ζ = 2e-4
+    (ρ = 0.999, 0.999^2000 = 0.14: no chance within 2000 periods) it stops after ~100
+    periods with the status the whole budget gives."""
+    w = 1.3
+    for zeta, settles in ((3.1e-3, True), (2e-4, False)):
+        st = aj.structure_from_matrices(np.eye(1), np.eye(1), damping=2 * zeta * np.eye(1))
+        system = aj.StructuralSystem(st, [], load="x1", observe="x1")
+        forcing = aj.Harmonic(amplitude=1.0, omega=w)
+        full, quick = (aj.steady_state(system, forcing, method=aj.Marching(
+            max_periods=2000, tol=1e-6, give_up=g)) for g in (None, 100))
+        assert int(quick.status) == int(full.status)
+        if settles:
+            assert int(full.status) == aj.Status.SUCCESS
+            assert int(quick.iterations) == int(full.iterations) > 400
+            exact = 1.0 / abs(1.0 - w**2 + 2j * zeta * w)
+            assert abs(float(quick.amplitude) / exact - 1) < 1e-6
+        else:
+            assert int(full.status) == aj.Status.NOT_PERIODIC
+            assert int(full.iterations) == 2000 and int(quick.iterations) <= 200

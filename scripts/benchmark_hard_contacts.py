@@ -15,7 +15,10 @@ F0 = 3 N, band 20–45 rad/s.
   covers, how it ended, bifurcations found.
 
     python scripts/benchmark_hard_contacts.py [--scenes kv,hertz] [--parts map,cont]
-                                              [--scipy-periods 40]
+                                              [--scipy-periods 40] [--out FILE]
+
+Prints each result as it comes; ``--out`` appends them to FILE
+(docs/benchmark_hard_contacts.txt holds the last run).
 """
 
 from __future__ import annotations
@@ -29,6 +32,12 @@ from scipy.integrate import solve_ivp
 import absorber_jax as aj
 
 BAND, F0, OMEGA_MAP = (20.0, 45.0), 3.0, 30.0
+LINES = []
+
+
+def report(line):
+    print(line, flush=True)
+    LINES.append(line)
 
 
 def scene(name):
@@ -85,14 +94,14 @@ def attractor_map(name, scipy_periods):
     lanes, window = m.initial_states.shape[0], 40
     t_lane = scipy_lane_seconds(system, m.initial_states[0], scipy_periods)
     t_sp = t_lane / scipy_periods * (marched + window) * lanes
-    print(f"[{name}] attractor map at {OMEGA_MAP} rad/s: {t_first:.1f} s with compilation, "
-          f"{t_again:.1f} s compiled; periods marched {marched} (+{window} window) x {lanes} "
-          f"states; scipy DOP853 {t_sp:.0f} s extrapolated from {scipy_periods} periods of "
-          f"one state: {t_sp / t_again:.0f}x (compiled), {t_sp / t_first:.0f}x (with "
-          f"compilation)", flush=True)
+    report(f"[{name}] attractor map at {OMEGA_MAP} rad/s: {t_first:.1f} s with compilation, "
+           f"{t_again:.1f} s compiled; periods marched {marched} (+{window} window) x {lanes} "
+           f"states; scipy DOP853 {t_sp:.0f} s extrapolated from {scipy_periods} periods of "
+           f"one state: {t_sp / t_again:.0f}x (compiled), {t_sp / t_first:.0f}x (with "
+           f"compilation)")
     for a in m.attractors:
-        print("   ", {k: (round(v, 5) if isinstance(v, float) else v)
-                      for k, v in a.summary().items()}, flush=True)
+        report("    " + str({k: (round(v, 5) if isinstance(v, float) else v)
+                             for k, v in a.summary().items()}))
 
 
 def continuation(name):
@@ -104,11 +113,10 @@ def continuation(name):
         dt = time.perf_counter() - t0
         kinds = {k: len(br.of_kind(k)) for k in ("fold", "period_doubling", "neimark_sacker")}
         v = br.values
-        print(f"[{name}] continuation from {start} {direction}: {dt:.1f} s with compilation, "
-              f"{len(v)} points covering {v.min():.3f}-{v.max():.3f} rad/s, ended "
-              f"{br.termination}; stable {int(np.sum(br.stable))}; bifurcations {kinds}; "
-              f"corrector iterations {np.bincount(np.asarray(br.steady.iterations)).tolist()}",
-              flush=True)
+        report(f"[{name}] continuation from {start} {direction}: {dt:.1f} s with compilation, "
+               f"{len(v)} points covering {v.min():.3f}-{v.max():.3f} rad/s, ended "
+               f"{br.termination}; stable {int(np.sum(br.stable))}; bifurcations {kinds}; "
+               f"corrector iterations {np.bincount(np.asarray(br.steady.iterations)).tolist()}")
 
 
 def main():
@@ -116,12 +124,16 @@ def main():
     ap.add_argument("--scenes", default="kv,hertz")
     ap.add_argument("--parts", default="map,cont")
     ap.add_argument("--scipy-periods", type=int, default=40)
+    ap.add_argument("--out", default=None)
     a = ap.parse_args()
     for name in a.scenes.split(","):
         if "map" in a.parts:
             attractor_map(name, a.scipy_periods)
         if "cont" in a.parts:
             continuation(name)
+    if a.out:
+        with open(a.out, "a") as fh:
+            fh.write("\n".join(LINES) + "\n")
 
 
 if __name__ == "__main__":

@@ -256,6 +256,9 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     check_system_and_forcing(system, forcing, "attractors")
     if give_up is None:
         give_up = max(1, max_periods // 4) if isinstance(max_periods, int) else max_periods
+    elif not isinstance(give_up, int) or give_up < 1:
+        raise ValueError(f"attractors: give_up must be None or a positive integer (periods), "
+                         f"got {give_up!r}")
     method = Marching(n_max=n_max, max_periods=max_periods, tol=tol, give_up=give_up)
     # the window must show a period-n_max orbit repeating at least once
     for name, v, lo in (("samples", samples, 1), ("window", window, max(2, n_max + 1))):

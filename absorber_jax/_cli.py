@@ -487,7 +487,7 @@ def cmd_attractors(args):
     t0 = time.perf_counter()
     system, amplitude, title, sets = _load_system(args)
     opts = dict(samples=args.samples, n_max=args.n_max, max_periods=args.max_periods,
-                window=args.window, seed=args.seed)
+                give_up=args.give_up, window=args.window, seed=args.seed)
     os.makedirs(args.out, exist_ok=True)
     if ":" in args.omega:
         lo, hi, n = _parse_range(args.omega, "--omega")
@@ -640,6 +640,9 @@ def build_parser():
     at.add_argument("--seed", type=int, default=0)
     at.add_argument("--n-max", type=int, default=8)
     at.add_argument("--max-periods", type=int, default=2000)
+    at.add_argument("--give-up", type=int, default=None,
+                    help="periods after which a lane that is not settling stops "
+                         "(default max-periods / 4; = max-periods: march every lane to the end)")
     at.add_argument("--window", type=int, default=40, help="periods of statistics")
     at.add_argument("--out", default="attractors")
     at.add_argument("--progress", action="store_true")

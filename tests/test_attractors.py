@@ -119,6 +119,8 @@ def test_bad_input_is_named():
         aj.bifurcation_diagram(system, forcing, [-1.0])
     with pytest.raises(ValueError, match="resolution must be an integer >= 2"):
         aj.attractors(system, forcing, resolution=1)
+    with pytest.raises(ValueError, match="give_up must be None or a positive integer"):
+        aj.attractors(system, forcing, give_up=0)
 
 
 def test_impacts_of_a_hard_contact_are_counted_against_an_event_exact_reference():

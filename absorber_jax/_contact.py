@@ -77,6 +77,29 @@ class AbstractContactLaw(eqx.Module):
         f, delta, _ = self.wall_force(x, rate)
         return (f - self.elastic_force(delta)) * rate
 
+    # a symmetric clearance: two walls at ±gap around the relative displacement u (the
+    # impact absorber of the paper and the ImpactDamper element share these)
+
+    def clearance_penetrations(self, u, gap):
+        """``(u - gap, -u - gap)``: the signed penetrations of the right and left walls [m]."""
+        return jnp.stack([u - gap, -u - gap])
+
+    def clearance_force(self, u, rate, gap):
+        """Net force [N] of the two walls on the relative coordinate ``u`` (rate ``rate``):
+        ``f(u - gap, u̇) - f(-u - gap, -u̇)``, the force the absorber exerts on its host."""
+        fr, _, _ = self.wall_force(u - gap, rate)
+        fl, _, _ = self.wall_force(-u - gap, -rate)
+        return fr - fl
+
+    def clearance_energy(self, u, gap):
+        """Elastic energy [J] stored in the two walls."""
+        return (self.potential(jnp.maximum(u - gap, 0.0))
+                + self.potential(jnp.maximum(-u - gap, 0.0)))
+
+    def clearance_dissipation(self, u, rate, gap):
+        """Power [W] dissipated in the two walls (:meth:`dissipated_power` of each)."""
+        return self.dissipated_power(u - gap, rate) + self.dissipated_power(-u - gap, -rate)
+
     def stiffness_rate(self, meff, scale):
         """A rough largest rate [1/s] the law adds to the linearised dynamics, for the
         automatic explicit/implicit solver choice (``scale``: a typical penetration [m])."""

@@ -269,20 +269,16 @@ class ImpactDamper(_Absorber):
         _check_contact("ImpactDamper", self.contact)
 
     def coupling(self, u, w, z):
-        fr, _, _ = self.contact.wall_force(u - self.gap, w)
-        fl, _, _ = self.contact.wall_force(-u - self.gap, -w)
-        return fr - fl, _zeros(0, u)
+        return self.contact.clearance_force(u, w, self.gap), _zeros(0, u)
 
     def penetrations(self, x, v, z):
-        return jnp.stack([z[0] - self.gap, -z[0] - self.gap])
+        return self.contact.clearance_penetrations(z[0], self.gap)
 
     def coupling_energy(self, u, z):
-        return (self.contact.potential(jnp.maximum(u - self.gap, 0.0))
-                + self.contact.potential(jnp.maximum(-u - self.gap, 0.0)))
+        return self.contact.clearance_energy(u, self.gap)
 
     def coupling_dissipation(self, u, w, z):
-        return (self.contact.dissipated_power(u - self.gap, w)
-                + self.contact.dissipated_power(-u - self.gap, -w))
+        return self.contact.clearance_dissipation(u, w, self.gap)
 
     def length_floor(self):
         return self.gap

@@ -253,28 +253,17 @@ class ImpactAbsorber(AbstractAbsorberSystem):
 
     def penetrations(self, s):
         """``(u - gap, -u - gap)`` with ``u = x2 - x1``: the right and left walls [m]."""
-        return jnp.stack([s[2] - self.gap, -s[2] - self.gap])
-
-    def walls(self, u, w):
-        """``((f+, δ+, δ̇+), (f-, δ-, δ̇-))`` at the right and left walls."""
-        return (
-            self.contact.wall_force(u - self.gap, w),
-            self.contact.wall_force(-u - self.gap, -w),
-        )
+        return self.contact.clearance_penetrations(s[2], self.gap)
 
     def coupling(self, u, w, z):
-        (fr, _, _), (fl, _, _) = self.walls(u, w)
-        return fr - fl, jnp.zeros((0,), dtype=jnp.result_type(u))
+        return (self.contact.clearance_force(u, w, self.gap),
+                jnp.zeros((0,), dtype=jnp.result_type(u)))
 
     def coupling_potential(self, u, z):
-        return self.contact.potential(jnp.maximum(u - self.gap, 0.0)) + self.contact.potential(
-            jnp.maximum(-u - self.gap, 0.0)
-        )
+        return self.contact.clearance_energy(u, self.gap)
 
     def coupling_dissipation(self, u, w, z):
-        return self.contact.dissipated_power(u - self.gap, w) + self.contact.dissipated_power(
-            -u - self.gap, -w
-        )
+        return self.contact.clearance_dissipation(u, w, self.gap)
 
     def length_floor(self):
         return self.gap

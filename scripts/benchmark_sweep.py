@@ -8,7 +8,9 @@ steady state), 256 frequencies over the scene's band:
   compile time is reported separately;
 - scipy: the loop a researcher writes, ``solve_ivp`` (DOP853) of the same smoothed ODE,
   marching one forcing period at a time until the Poincaré samples change by less than
-  ``TOL`` (relative) over 3 consecutive periods, at most ``MAX_PERIODS``.  Marching every
+  ``TOL`` (relative) over 3 consecutive periods, at most ``MAX_PERIODS``; and the loop
+  issue 12 names (RK45 in 20-period chunks until the amplitude changes by < 1e-4,
+  ``scipy_issue_loop``) on the same frequencies.  Marching every
   frequency takes hours in Python, so scipy runs on ``--scipy-points`` evenly spaced
   frequencies and its mean time per frequency is extrapolated to 256 (said in the output).
 
@@ -109,6 +111,26 @@ def scipy_march(system, F0, w):
     sol = solve_ivp(f, (0, T), y[0], method="DOP853", rtol=1e-10, atol=1e-13, args=(F0, w),
                     t_eval=ts)
     return 0.5 * np.ptp(sol.y[0]), periods
+
+
+def scipy_issue_loop(system, F0, w, chunk=20, tol=TOL, max_periods=MAX_PERIODS):
+    """The competitor issue 12 names: ``solve_ivp`` (RK45, rtol 1e-8) in chunks of
+    ``chunk`` periods until the amplitude (half peak-to-peak of x1 over the chunk's last
+    period) changes by < ``tol`` (relative) from one chunk to the next.  Returns the
+    amplitude and the periods marched."""
+    f, n = numpy_rhs(system)
+    T = 2 * np.pi / w
+    y, prev, k = np.zeros(n), None, 0
+    while k < max_periods:
+        t0, t1 = k * T, (k + chunk) * T
+        sol = solve_ivp(f, (t0, t1), y, method="RK45", rtol=1e-8, atol=1e-11, args=(F0, w),
+                        dense_output=True)
+        y, k = sol.y[:, -1], k + chunk
+        amp = 0.5 * np.ptp(sol.sol(np.linspace(t1 - T, t1, 257))[0])
+        if prev is not None and abs(amp - prev) < tol * abs(prev):
+            break
+        prev = amp
+    return amp, k
 
 
 def march_until_settled(period, tol, max_periods):
@@ -214,11 +236,18 @@ def run(points, scipy_points, which=("impact", "lugre", "stickslip")):
         sp = (time.perf_counter() - t) / len(idx)
         ref = np.array(ref)
         diff = np.max(np.abs(frf.amplitude[idx] - ref) / ref)
+        t = time.perf_counter()
+        ref2, periods2 = zip(*[scipy_issue_loop(system, F0, om[i]) for i in idx])
+        sp2 = (time.perf_counter() - t) / len(idx)
+        diff2 = np.max(np.abs(frf.amplitude[idx] - np.array(ref2)) / np.array(ref2))
         row = dict(scene=label, points=points, compile_s=first - ours, ours_s=ours,
                    ours_ms_per_freq=1e3 * ours / points, scipy_s_per_freq=sp,
                    scipy_est_total_s=sp * points, ratio=sp * points / ours,
                    max_rel_diff=diff, failed=int((frf.status != 0).sum()),
                    scipy_periods=f"{min(periods)}–{max(periods)}", scipy_points=len(idx),
+                   issue_loop_s_per_freq=sp2, issue_loop_ratio=sp2 * points / ours,
+                   issue_loop_diff=diff2,
+                   issue_loop_periods=f"{min(periods2)}–{max(periods2)}",
                    **newton_counts(frf))
         print(row, flush=True)
         rows.append(row)
@@ -247,6 +276,15 @@ def write_md(rows, path):
               "scene: the event-switched stick/slip equations), marching one "
               "period at a time until the Poincaré samples change by < 1e-4 for 3 periods; its "
               "time per frequency is measured on the listed points and multiplied by 256.", ""]
+    for r in rows:
+        if "issue_loop_ratio" in r:
+            lines += [f"{r['scene']}: against issue 12's own loop (RK45, rtol 1e-8, 20-period "
+                      f"chunks until the amplitude changes by < 1e-4), timed on the same "
+                      f"{r['scipy_points']} frequencies in the same run: "
+                      f"{r['issue_loop_s_per_freq']:.2f} s/freq "
+                      f"({r['issue_loop_periods']} periods), "
+                      f"**{r['issue_loop_ratio']:.0f}×**; largest amplitude difference "
+                      f"{r['issue_loop_diff']:.1e}.", ""]
     for r in rows:
         if "newton_hist" in r:
             lines += [f"{r['scene']}: Newton steps per point (steps: points) "

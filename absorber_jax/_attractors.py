@@ -159,12 +159,11 @@ def window_statistics(system, forcing, x, window, samples, cfg):
     T = 2 * jnp.pi / forcing.omega
     skip = window // 4
     ts = T * jnp.arange(1, samples + 1) / samples
-    cfg_1 = cfg.over_periods(1)
     v0 = jnp.ones_like(x) / jnp.sqrt(x.shape[0])
 
     def period(c, k):
         y, v, acc, st = c
-        ys, vs, s = flow_along((system, forcing), y, v, T, ts, cfg_1)
+        ys, vs, s = flow_along((system, forcing), y, v, T, ts, cfg)
         size = jnp.linalg.norm(vs[-1])
         acc = acc + jnp.where(k >= skip, jnp.log(size), 0.0)
         st = jnp.where(st == Status.SUCCESS, s, st)
@@ -254,11 +253,9 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     """
     require_x64("attractors")
     check_system_and_forcing(system, forcing, "attractors")
-    if give_up is None:
-        give_up = max(1, max_periods // 4) if isinstance(max_periods, int) else max_periods
-    elif not isinstance(give_up, int) or give_up < 1:
-        raise ValueError(f"attractors: give_up must be None or a positive integer (periods), "
-                         f"got {give_up!r}")
+    if give_up is None and isinstance(max_periods, int):
+        give_up = max(1, max_periods // 4)
+    # (Marching checks max_periods and give_up, naming them)
     method = Marching(n_max=n_max, max_periods=max_periods, tol=tol, give_up=give_up)
     # the window must show a period-n_max orbit repeating at least once
     for name, v, lo in (("samples", samples, 1), ("window", window, max(2, n_max + 1))):

@@ -261,7 +261,7 @@ def _tangent(J, t_prev):
 @eqx.filter_jit
 def _corrector(prob, z_pred, t_prev, tol, newton_steps):
     """Newton on ``[Φ(z) - x; t_prev·(z - z_pred)] = 0`` from ``z_pred``; returns the point,
-    its Jacobian, the new tangent, the point's :class:`SteadyState` and the iterations.
+    the new tangent and the point's :class:`SteadyState` (its iterations included).
 
     Every Jacobian is integrated with steps controlled on the tangents too
     (:func:`absorber_jax._flow.accurate_tangents`): forward mode through steps chosen for the

@@ -17,6 +17,10 @@ from ._method import AbstractSteadyMethod
 from ._orbit import _finish, _no_gradient, implicit_orbit
 from ._status import Status
 
+# a response whose closest recurrence min_n d_n is below this many tol is near periodic: a
+# march that ends there is NO_CONVERGENCE (not NOT_PERIODIC), and give_up lets it march on
+NEAR_PERIODIC = 1e3
+
 
 def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chunk=40,
           give_up=None, with_floquet=True):
@@ -83,7 +87,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
         # slowly drifting family, marches on: more periods still sharpen its statistics)
         hopeless = (jnp.asarray(False) if give_up is None else
                     (marched >= give_up) & ~found & ~(reach < 10 * tol)
-                    & ~(d_min < 1e3 * tol))
+                    & ~(d_min < NEAR_PERIODIC * tol))
         return (ts[-1], ys[-1], buf, d, d_prev, k + 1, found, n, st, best, (d_first, p_first),
                 hopeless)
 
@@ -99,7 +103,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
     t, x, buf, d, _, k, found, n, st, (ret_best, x_best), _, _ = jax.lax.while_loop(
         cond, body, c0)
     # restart the orbit at phase 0 (t is a multiple of T; the forcing is T-periodic)
-    periodic_like = jnp.min(d) < 1e3 * tol
+    periodic_like = jnp.min(d) < NEAR_PERIODIC * tol
     status = jnp.where(st != Status.SUCCESS, st,
                        jnp.where(found, Status.SUCCESS,
                                  jnp.where(periodic_like, Status.NO_CONVERGENCE,

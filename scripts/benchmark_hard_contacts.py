@@ -7,7 +7,8 @@ F0 = 3 N, band 20–45 rad/s.
 - **Attractor map at 30 rad/s** (``aj.attractors`` at its defaults: 32 initial states,
   marching budget 2000 periods, ``give_up`` 500, a 40-period statistics window carrying a
   Lyapunov tangent), timed in a fresh process (compilation included) and again (compiled).
-  Against scipy: ``solve_ivp`` (DOP853, rtol 1e-8) of the same smoothed ODE in numpy,
+  Against scipy: ``solve_ivp`` (DOP853, rtol 1e-8) of the same smoothed ODE in numpy
+  (``benchmark_sweep.numpy_rhs``),
   period by period, over the periods absorber_jax marched plus the window for one initial
   state, extrapolated to the 32 states.
 - **Continuation in ω over 20–45 rad/s** from both ends of the band (``direction="up"``
@@ -24,12 +25,17 @@ Prints each result as it comes; ``--out`` appends them to FILE
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 import absorber_jax as aj
+
+sys.path.insert(0, os.path.dirname(__file__))
+from benchmark_sweep import numpy_rhs  # noqa: E402
 
 BAND, F0, OMEGA_MAP = (20.0, 45.0), 3.0, 30.0
 LINES = []
@@ -46,38 +52,15 @@ def scene(name):
     return aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3, contact=contact)
 
 
-def numpy_rhs(system):
-    """The same smoothed vector field in plain numpy (adhesive Kelvin–Voigt or Hertz)."""
-    M, k, c, m, d = (float(system.M), float(system.k), float(system.c), float(system.m),
-                     float(system.gap))
-    law = system.contact
-    kc, cc, eps, ex = (float(law.stiffness), float(law.damping), float(law.eps),
-                       float(law.exponent))
-
-    def wall(x, r):
-        z = x / eps
-        delta = eps * np.logaddexp(0.0, z)
-        gate = 0.5 * (1 + np.tanh(0.5 * z))
-        return kc * delta**ex + cc * gate * r
-
-    def f(t, y, w):
-        x1, v1, x2, v2 = y
-        u, du = x2 - x1, v2 - v1
-        fc = wall(u - d, du) - wall(-u - d, -du)
-        return [v1, (F0 * np.sin(w * t) - c * v1 - k * x1 + fc) / M, v2, -fc / m]
-
-    return f
-
-
 def scipy_lane_seconds(system, y0, periods):
     """Seconds for scipy to march one initial state ``periods`` forcing periods."""
-    f = numpy_rhs(system)
+    f, _ = numpy_rhs(system)
     T = 2 * np.pi / OMEGA_MAP
     y = np.asarray(y0, dtype=float)
     t0 = time.perf_counter()
     for k in range(periods):
         y = solve_ivp(f, (k * T, (k + 1) * T), y, method="DOP853", rtol=1e-8, atol=1e-11,
-                      args=(OMEGA_MAP,)).y[:, -1]
+                      args=(F0, OMEGA_MAP)).y[:, -1]
     return time.perf_counter() - t0
 
 

@@ -57,18 +57,20 @@ def scenes():
 
 
 def numpy_rhs(system):
-    """The same smoothed vector field in plain numpy (absolute coordinates)."""
+    """The same smoothed vector field in plain numpy (absolute coordinates; impact: the
+    adhesive Kelvin–Voigt or Hertz law, elastic part ``k δ^exponent``)."""
     if isinstance(system, aj.ImpactAbsorber):
         M, k, c, m, d = (float(system.M), float(system.k), float(system.c), float(system.m),
                          float(system.gap))
         law = system.contact
-        k1, c1, eps = float(law.stiffness), float(law.damping), float(law.eps)
+        k1, c1, eps, ex = (float(law.stiffness), float(law.damping), float(law.eps),
+                           float(law.exponent))
 
         def wall(x, r):
             z = x / eps
             delta = eps * (np.logaddexp(0.0, z))
             gate = 0.5 * (1 + np.tanh(0.5 * z))
-            return k1 * delta + c1 * gate * r
+            return k1 * delta**ex + c1 * gate * r
 
         def f(t, y, F0, w):
             x1, v1, x2, v2 = y

@@ -96,6 +96,10 @@ RETRY_BATCH = 8
 # Table 1 1.23 -> 1.04 s, Table 5 LuGre 9.1 -> 7.1 s, exact Coulomb 1.72 -> 1.65 s; a 5th
 # step is mostly Newton confirming a residual already within tolerance
 FIRST_PASS_NEWTON = 5
+# chunks of at most this many points run every lane's whole Newton budget in the vmapped
+# pass: resuming a few stragglers of so few lanes would compile a second program (10-20 s)
+# to save a few lockstep Newton steps (ms)
+SMALL_CHUNK = 2 * RETRY_BATCH
 
 
 @eqx.filter_jit
@@ -136,12 +140,13 @@ def _in_batches(res, bad, solve, desc, progress):
     return res
 
 
-def _finish_stragglers(system, res, W, PV, amp, cfg, method, names, with_floquet, progress):
-    """After the vmapped first pass: resume the lanes still iterating from their last
-    iterate (``method.resume``), then (``method.retry``) re-solve what still failed by
-    marching then shooting."""
+def _finish_stragglers(system, res, W, PV, amp, cfg, method, names, with_floquet, progress,
+                       split=True):
+    """After the vmapped first pass: (``split``: it ran ``method.first_pass``) resume the
+    lanes still iterating from their last iterate (``method.resume``), then
+    (``method.retry``) re-solve what still failed by marching then shooting."""
     res = jax.tree_util.tree_map(np.array, res)  # writable copies
-    rest = method.resume(FIRST_PASS_NEWTON)
+    rest = method.resume(FIRST_PASS_NEWTON) if split else None
     if rest is not None:
         slow = np.flatnonzero(res.status == Status.NO_CONVERGENCE)
 
@@ -218,9 +223,10 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
     - ``shard``: spread each chunk over all local devices with ``jax.sharding`` (when there
       are several).
     - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
-      ``FIRST_PASS_NEWTON`` Newton steps, the lanes still iterating resume from their last
-      iterate a few at a time, and (``retry``, the default) the points that still failed are
-      re-solved by marching then shooting (:func:`march_then_shoot`) before they are flagged.
+      ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
+      the lanes still iterating resume from their last iterate a few at a time, and
+      (``retry``, the default) the points that still failed are re-solved by marching then
+      shooting (:func:`march_then_shoot`) before they are flagged.
     - the remaining keywords as in :func:`steady_state`.
 
     ```python
@@ -279,7 +285,8 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
         size = min(chunk_size, total)
         ndev = jax.local_device_count() if shard else 1
         size = int(math.ceil(size / ndev) * ndev)
-        first = method.first_pass(FIRST_PASS_NEWTON)
+        split = size > SMALL_CHUNK
+        first = method.first_pass(FIRST_PASS_NEWTON) if split else method
         out = []
         for start in tqdm(range(0, total, size), desc="sweep", disable=not progress):
             w = W[start:start + size]
@@ -293,7 +300,8 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
             keep = size - pad
             out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:k], res))
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
-        res = _finish_stragglers(system, res, W, PV, amp, cfg, method, names, floquet, progress)
+        res = _finish_stragglers(system, res, W, PV, amp, cfg, method, names, floquet, progress,
+                                 split)
         res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(order)) + a.shape[1:]), res)
     else:
         carry = jnp.full((P, system.num_states), jnp.nan)

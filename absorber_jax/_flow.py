@@ -139,26 +139,16 @@ def _flow_jvp(primals, tangents, *, cfg):
     dyn, x0, t1, ts = primals
     if all(t is None for t in jax.tree_util.tree_leaves(tangents, is_leaf=is_none)):
         return _integrate(dyn, x0, 0.0, t1, ts, cfg), (None, None)
-    if dyn[0].hybrid:
-        # through the event times and the segments' steps, the save times included (the
-        # rate at a save time is the mode's there)
-        vec, rebuild, t_vec = _flat_inputs(primals, tangents)
-
-        def states(v):
-            dyn_, x0_, t1_, ts_ = rebuild(v)
-            ys, status = _integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
-            return ys, (ys, status)
-
-        jac, (ys, status) = jax.jacfwd(states, has_aux=True)(vec)
-        jac = jnp.where(jnp.isfinite(jac), jac, 0.0)
-        return (ys, status), (jnp.tensordot(jac, t_vec, axes=1), None)
-    # the system, forcing and initial state: a Jacobian; the save times (they move with the
-    # forcing period): the flow's rate there.  The times are not input directions of the
-    # Jacobian: sampling an orbit at 256 times whose tangent is the period's would carry
-    # 256 more tangents through the solve (measured: the 22-point grid pass of exact_peak on
-    # a TMD, 1.23 -> 0.15 s)
-    if any(t is not None for t in jax.tree_util.tree_leaves(tangents[:2], is_leaf=is_none)):
-        vec, rebuild, t_vec = _flat_inputs(primals[:2], tangents[:2])
+    # Smooth systems: a Jacobian in the system, forcing and initial state; the save times
+    # (they move with the forcing period) add the flow's rate there.  They are not input
+    # directions of the Jacobian: sampling an orbit at 256 times whose tangent is the
+    # period's would carry 256 more tangents through the solve (measured: the 22-point grid
+    # pass of exact_peak on a TMD, 1.23 -> 0.15 s).  Hybrid (exact stick–slip) systems: every
+    # input through the event times and the segments' steps, the times included (the rate at
+    # a save time is the mode's there).
+    k = 4 if dyn[0].hybrid else 2
+    if any(t is not None for t in jax.tree_util.tree_leaves(tangents[:k], is_leaf=is_none)):
+        vec, rebuild, t_vec = _flat_inputs(primals[:k], tangents[:k])
         if _by_sensitivities(dyn, cfg):
             dyn_active = any(t is not None for t in
                              jax.tree_util.tree_leaves(tangents[0], is_leaf=is_none))
@@ -167,7 +157,8 @@ def _flow_jvp(primals, tangents, *, cfg):
             # through the explicit solver's steps (diffrax ForwardMode, one solve for all
             # directions)
             def states(v):
-                ys, status = _integrate(*rebuild(v), 0.0, t1, ts, cfg)
+                dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
+                ys, status = _integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
                 return ys, (ys, status)
 
             jac, (ys, status) = jax.jacfwd(states, has_aux=True)(vec)
@@ -179,7 +170,7 @@ def _flow_jvp(primals, tangents, *, cfg):
     else:
         ys, status = _integrate(dyn, x0, 0.0, t1, ts, cfg)
         dys = jnp.zeros_like(ys)
-    dt = tangents[2] if ts is None else tangents[3]
+    dt = None if k == 4 else (tangents[2] if ts is None else tangents[3])
     if dt is not None:
         t_save = jnp.asarray(t1)[None] if ts is None else ts
         f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)

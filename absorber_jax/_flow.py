@@ -146,7 +146,8 @@ def _flow_jvp(primals, tangents, *, cfg):
     # pass of exact_peak on a TMD, 1.23 -> 0.15 s).  Hybrid (exact stick–slip) systems: every
     # input through the event times and the segments' steps, the times included (the rate at
     # a save time is the mode's there).
-    k = 4 if dyn[0].hybrid else 2
+    hybrid = dyn[0].hybrid
+    k = 4 if hybrid else 2
     if any(t is not None for t in jax.tree_util.tree_leaves(tangents[:k], is_leaf=is_none)):
         vec, rebuild, t_vec = _flat_inputs(primals[:k], tangents[:k])
         if _by_sensitivities(dyn, cfg):
@@ -170,7 +171,7 @@ def _flow_jvp(primals, tangents, *, cfg):
     else:
         ys, status = _integrate(dyn, x0, 0.0, t1, ts, cfg)
         dys = jnp.zeros_like(ys)
-    dt = None if k == 4 else (tangents[2] if ts is None else tangents[3])
+    dt = None if hybrid else (tangents[2] if ts is None else tangents[3])
     if dt is not None:
         t_save = jnp.asarray(t1)[None] if ts is None else ts
         f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)

@@ -185,7 +185,8 @@ def floquet(system, forcing, x0, n, cfg, n_cap=None):
     # steps controlled on the tangents too: multipliers accurate to ~1e-6, not ~1e-3, across
     # stiff contacts (see accurate_tangents), so that stability labels near bifurcations hold
     cfg = accurate_tangents(cfg)
-    # a large state's monodromy costs ~num_states integrations: at most FLOQUET_RTOL
+    # no tighter than FLOQUET_RTOL (a large state's monodromy costs ~num_states
+    # integrations) or FLOQUET_RTOL_SMALL
     floor = FLOQUET_RTOL if system.num_states >= SENSITIVITY_STATES else FLOQUET_RTOL_SMALL
     cfg = dataclasses.replace(cfg, rtol=max(cfg.rtol, floor), atol=max(cfg.atol, floor))
     return jnp.linalg.eigvals(monodromy(system, forcing, x0, n, cfg, n_cap=n_cap))

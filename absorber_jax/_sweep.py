@@ -140,13 +140,13 @@ def _in_batches(res, bad, solve, desc, progress):
     return res
 
 
-def _finish_stragglers(system, res, W, PV, amp, cfg, method, names, with_floquet, progress,
-                       split=True):
-    """After the vmapped first pass: (``split``: it ran ``method.first_pass``) resume the
-    lanes still iterating from their last iterate (``method.resume``), then
-    (``method.retry``) re-solve what still failed by marching then shooting."""
+def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_floquet,
+                       progress):
+    """After the vmapped first pass: resume the lanes still iterating from their last
+    iterate with ``rest`` (``method.resume``; None when the first pass had the whole
+    budget), then (``method.retry``) re-solve what still failed by marching then
+    shooting."""
     res = jax.tree_util.tree_map(np.array, res)  # writable copies
-    rest = method.resume(FIRST_PASS_NEWTON) if split else None
     if rest is not None:
         slow = np.flatnonzero(res.status == Status.NO_CONVERGENCE)
 
@@ -285,8 +285,8 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
         size = min(chunk_size, total)
         ndev = jax.local_device_count() if shard else 1
         size = int(math.ceil(size / ndev) * ndev)
-        split = size > SMALL_CHUNK
-        first = method.first_pass(FIRST_PASS_NEWTON) if split else method
+        first, rest = ((method.first_pass(FIRST_PASS_NEWTON), method.resume(FIRST_PASS_NEWTON))
+                       if size > SMALL_CHUNK else (method, None))
         out = []
         for start in tqdm(range(0, total, size), desc="sweep", disable=not progress):
             w = W[start:start + size]
@@ -300,8 +300,8 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
             keep = size - pad
             out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:k], res))
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
-        res = _finish_stragglers(system, res, W, PV, amp, cfg, method, names, floquet, progress,
-                                 split)
+        res = _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, floquet,
+                                 progress)
         res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(order)) + a.shape[1:]), res)
     else:
         carry = jnp.full((P, system.num_states), jnp.nan)

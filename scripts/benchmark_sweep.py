@@ -36,6 +36,7 @@ the floating absorber's 106 one-Newton-step lanes wait in lockstep for the impac
 from __future__ import annotations
 
 import argparse
+import inspect
 import os
 import platform
 import sys
@@ -181,6 +182,8 @@ def stickslip_march(w, rtol, tol, s=None, mode=0, max_periods=MAX_PERIODS):
 
 
 REPEATS = 5
+# frequency_response's own default (points per compiled vmapped call)
+CHUNK_SIZE = inspect.signature(aj.frequency_response).parameters["chunk_size"].default
 
 
 def timed(system, om, **kw):
@@ -195,7 +198,7 @@ def timed(system, om, **kw):
     return out, float(np.median(ts))
 
 
-def stickslip_row(points, scipy_points, chunk_size=64):
+def stickslip_row(points, scipy_points, chunk_size):
     system = aj.FrictionAbsorber(**STICKSLIP, normal_force=4.0, friction=aj.Coulomb(mu=0.5))
     om = np.linspace(70.0, 130.0, points)
     t = time.perf_counter()
@@ -234,7 +237,7 @@ def newton_counts(frf):
                 newton_hist=hist)
 
 
-def run(points, scipy_points, which=("impact", "lugre", "stickslip"), chunk_size=64):
+def run(points, scipy_points, which=("impact", "lugre", "stickslip"), chunk_size=CHUNK_SIZE):
     rows = []
     if "stickslip" in which:
         rows.append(stickslip_row(points, scipy_points, chunk_size))
@@ -323,7 +326,7 @@ if __name__ == "__main__":
     ap.add_argument("--scipy-points", type=int, default=8)
     ap.add_argument("--out", default="BENCHMARKS.md")
     ap.add_argument("--scenes", default="impact,lugre,stickslip")
-    ap.add_argument("--chunk-size", type=int, default=64,
-                    help="frequency_response's chunk_size (its default, 64)")
+    ap.add_argument("--chunk-size", type=int, default=CHUNK_SIZE,
+                    help=f"frequency_response's chunk_size (its default, {CHUNK_SIZE})")
     a = ap.parse_args()
     write_md(run(a.points, a.scipy_points, tuple(a.scenes.split(",")), a.chunk_size), a.out)

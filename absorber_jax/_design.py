@@ -518,14 +518,14 @@ class _Evaluator:
     def _follow(self, u):
         """Amplitudes, gradients and success of the tracked coexisting responses at ``u``;
         their states move on with the design."""
-        from ._robust import track
+        from ._peak import evaluate_points
 
         system, names, reparam = self.args
         w, x = self.tracked
-        a, g, xn, st = (np.asarray(v) for v in track(
-            system, names, reparam, jnp.asarray(u), jnp.asarray(w),
-            jnp.asarray(self.amplitude, dtype=float), jnp.asarray(x), self.cfg,
-            float(self.tol), int(self.newton_steps)))
+        # in batches of the exact peak's slots: the objective's compiled program, reused
+        a, g, xn, st = evaluate_points(
+            system, names, reparam, jnp.asarray(u), w, jnp.asarray(self.amplitude, dtype=float),
+            x, self.cfg, float(self.tol), int(self.newton_steps), int(self.peaks))
         ok = st == Status.SUCCESS
         self.tracked = (w, np.where(ok[:, None], xn, x))
         return np.where(ok, a, 0.0), np.where(ok[:, None], g[:, 1:], 0.0), ok

@@ -157,40 +157,57 @@ def candidates(omegas, amps, slopes, ok, peaks):
     return kind[order], j[order]
 
 
-def locate(system_at, v, omegas, amplitude, grid, kind, j, cfg, method, xtol, max_iter):
-    """One slot: the zero of the slope in the bracket ``[ω_j, ω_j+1]`` by Illinois regula
-    falsi (LOCATED), or the grid point ``j`` as it is.  Returns ``(ω, A, gradient, state,
-    status, iterations)``; vmap over slots."""
+def _illinois_point(a, b, ga, gb):
+    """The regula falsi point of the brackets ``[a, b]`` (slopes ``ga > 0 >= gb``), kept
+    1e-3 of the bracket inside it."""
+    w = (a * gb - b * ga) / np.where(gb - ga == 0, 1.0, gb - ga)
+    span = b - a
+    return np.clip(w, a + 1e-3 * span, b - 1e-3 * span)
+
+
+def locate(evaluate_slots, omegas, grid, kind, j, xtol, max_iter):
+    """The slots: the zero of the slope in each bracket ``[ω_j, ω_j+1]`` by Illinois regula
+    falsi (LOCATED), or the grid point ``j`` as it is.  ``grid``: the grid pass by frequency
+    (numpy); ``evaluate_slots(w, guesses)``: one compiled evaluation of every slot.  Returns
+    ``(ω, A, gradient, state, status, iterations)`` per slot.  A slot stops once its step or
+    bracket is below ``xtol * ω``, its orbit failed or its slope is 0; the loop runs while
+    any slot goes on (slots that stopped are evaluated again with the others and their
+    results discarded: one program of fixed shape)."""
     amps, grads, states, status = grid
     F = omegas.shape[0]
-    k = jnp.minimum(j + 1, F - 1)
-    a, b, ga, gb = omegas[j], omegas[k], grads[j, 0], grads[k, 0]
-    start = jnp.where((kind == LOCATED) & (amps[k] > amps[j]), k, j)
-    init = dict(a=a, b=b, ga=ga, gb=gb, xa=states[j], xb=states[k], side=jnp.array(0),
-                it=jnp.array(0), w=omegas[start], amp=amps[start], grad=grads[start],
-                x=states[start], st=status[start], done=kind != LOCATED)
-
-    def body(c):
-        w = (c["a"] * c["gb"] - c["b"] * c["ga"]) / (c["gb"] - c["ga"])
-        span = c["b"] - c["a"]
-        w = jnp.clip(w, c["a"] + 1e-3 * span, c["b"] - 1e-3 * span)
-        guess = jnp.where(w - c["a"] < c["b"] - w, c["xa"], c["xb"])
-        amp, grad, x, st = evaluate(system_at, v, w, amplitude, guess, cfg, method)
-        g = grad[0]
+    k = np.minimum(j + 1, F - 1)
+    a, b, ga, gb = omegas[j].copy(), omegas[k].copy(), grads[j, 0].copy(), grads[k, 0].copy()
+    xa, xb = states[j].copy(), states[k].copy()
+    start = np.where((kind == LOCATED) & (amps[k] > amps[j]), k, j)
+    w, amp, grad = omegas[start].copy(), amps[start].copy(), grads[start].copy()
+    x, st = states[start].copy(), status[start].copy()
+    side, it = np.zeros(len(j), int), np.zeros(len(j), int)
+    done = kind != LOCATED
+    while np.any(~done & (it < max_iter)):
+        active = ~done & (it < max_iter)
+        wn = np.where(active, _illinois_point(a, b, ga, gb), w)
+        guess = np.where((wn - a < b - wn)[:, None], xa, xb)
+        amp_n, grad_n, x_n, st_n = evaluate_slots(wn, guess)
+        g = grad_n[:, 0]
         left = g < 0                        # the zero lies in [a, w]: w replaces b
-        n = dict(c)
-        n.update(b=jnp.where(left, w, c["b"]), xb=jnp.where(left, x, c["xb"]),
-                 gb=jnp.where(left, g, jnp.where(c["side"] == -1, 0.5 * c["gb"], c["gb"])),
-                 a=jnp.where(left, c["a"], w), xa=jnp.where(left, c["xa"], x),
-                 ga=jnp.where(left, jnp.where(c["side"] == 1, 0.5 * c["ga"], c["ga"]), g),
-                 side=jnp.where(left, 1, -1), it=c["it"] + 1, w=w, amp=amp, grad=grad, x=x,
-                 st=st)
-        n["done"] = ((st != Status.SUCCESS) | (jnp.abs(w - c["w"]) <= xtol * w)
-                     | (n["b"] - n["a"] <= xtol * w) | (g == 0))
-        return n
 
-    out = jax.lax.while_loop(lambda c: (~c["done"]) & (c["it"] < max_iter), body, init)
-    return out["w"], out["amp"], out["grad"], out["x"], out["st"], out["it"]
+        def upd(new, old, active=active):
+            return np.where(active.reshape((-1,) + (1,) * (old.ndim - 1)), new, old)
+
+        a_new = np.where(left, a, wn)
+        b_new = np.where(left, wn, b)
+        ga_new = np.where(left, np.where(side == 1, 0.5 * ga, ga), g)
+        gb_new = np.where(left, g, np.where(side == -1, 0.5 * gb, gb))
+        stop = ((st_n != Status.SUCCESS) | (np.abs(wn - w) <= xtol * wn)
+                | (b_new - a_new <= xtol * wn) | (g == 0))
+        xa, xb = upd(np.where(left[:, None], xa, x_n), xa), upd(np.where(left[:, None], x_n,
+                                                                        xb), xb)
+        a, b, ga, gb = upd(a_new, a), upd(b_new, b), upd(ga_new, ga), upd(gb_new, gb)
+        side, it = upd(np.where(left, 1, -1), side), upd(it + 1, it)
+        w, amp, grad, x, st = (upd(n, o) for n, o in ((wn, w), (amp_n, amp), (grad_n, grad),
+                                                       (x_n, x), (st_n, st)))
+        done = upd(stop, done)
+    return w, amp, grad, x, st, it
 
 
 def shooting_for_design(tol, newton_steps):
@@ -292,6 +309,37 @@ def evaluate_many(system, names, reparam, u, omegas, amplitude, guesses, cfg, me
 
 
 @eqx.filter_jit
+def evaluate_batch(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
+                   newton_steps):
+    """:func:`evaluate_many` with the design shooting (``tol``, ``newton_steps``): per
+    frequency ``(A, [dA/dω, dA/du...], internal state, status)``.  Compiled once per batch
+    size: :func:`peak_core`'s grid pass and its Illinois iterations share it."""
+    return evaluate_many(system, names, reparam, u, omegas, amplitude, guesses, cfg,
+                         shooting_for_design(tol, newton_steps))
+
+
+def evaluate_points(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
+                    newton_steps, batch):
+    """:func:`evaluate_batch` over any number of frequencies, ``batch`` at a time (the last
+    call padded with its last point), so that every call runs the same compiled program;
+    numpy outputs."""
+    omegas = np.asarray(omegas, dtype=float)
+    guesses = np.asarray(guesses, dtype=float)
+    n = omegas.shape[0]
+    pad = (-n) % batch
+    w = np.concatenate([omegas, np.repeat(omegas[-1:], pad)])
+    g = np.concatenate([guesses, np.repeat(guesses[-1:], pad, axis=0)])
+    parts = [[np.asarray(v) for v in evaluate_batch(
+        system, names, reparam, u, jnp.asarray(w[i:i + batch]), amplitude,
+        jnp.asarray(g[i:i + batch]), cfg, tol, newton_steps)] for i in range(0, n + pad, batch)]
+    return tuple(np.concatenate([p[m] for p in parts])[:n] for m in range(4))
+
+
+@eqx.filter_jit
+def _modal_seeds_at(system, names, reparam, u, lo, hi):
+    return modal_seeds(design_system(system, names, reparam, u), lo, hi)
+
+
 def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps,
               peaks, xtol, max_iter, modes=True):
     """Slots of the band's peak at the design ``u`` (``reparam.forward(u)`` gives the named
@@ -299,28 +347,36 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
     ``omegas`` and, with ``modes``, the :func:`modal_seeds`), the located frequencies, the
     refined amplitudes and their gradients in ``u`` at the located frequencies (envelope
     theorem).  ``guesses``: warm starts on ``omegas`` (the seeds start from the method's
-    guess).  The ``grid_*`` outputs list ``omegas`` first, then the seeds.  One compilation
-    per shape."""
-    def system_at(v):
-        return design_system(system, names, reparam, v)
+    guess).  The ``grid_*`` outputs list ``omegas`` first, then the seeds (numpy arrays).
 
-    method = shooting_for_design(tol, newton_steps)
+    One compiled program of ``peaks`` lanes (:func:`evaluate_batch`) serves both the grid,
+    evaluated ``peaks`` frequencies at a time, and every Illinois iteration (all slots at
+    once): compiled as two programs (the grid's batch and the slots') inside one
+    ``jax.jit``, the hardening oscillator of tests/test_peak.py took 55 s to compile, one
+    program alone 21 s; runs are milliseconds there."""
+    omegas = np.asarray(omegas, dtype=float)
+    guesses = np.asarray(guesses, dtype=float)
     grid_w, grid_g = omegas, guesses
     if modes:
-        seeds = modal_seeds(system_at(u), omegas[0], omegas[-1])
-        grid_w = jnp.concatenate([omegas, seeds])
-        grid_g = jnp.concatenate([guesses, jnp.full((seeds.shape[0], guesses.shape[1]),
-                                                    jnp.nan, guesses.dtype)])
-    grid = evaluate_many(system, names, reparam, u, grid_w, amplitude, grid_g, cfg, method)
+        seeds = np.asarray(_modal_seeds_at(system, names, reparam, u, jnp.asarray(omegas[0]),
+                                           jnp.asarray(omegas[-1])))
+        grid_w = np.concatenate([omegas, seeds])
+        grid_g = np.concatenate([guesses, np.full((seeds.shape[0], guesses.shape[1]),
+                                                  np.nan)])
+
+    def evaluate_slots(w, g):
+        return evaluate_points(system, names, reparam, u, w, amplitude, g, cfg, tol,
+                               newton_steps, peaks)
+
+    grid = evaluate_slots(grid_w, grid_g)
     amps, grads, states, status = grid
-    order = jnp.argsort(grid_w)
+    order = np.argsort(grid_w, kind="stable")
     w_sorted = grid_w[order]
-    by_freq = jax.tree_util.tree_map(lambda a: a[order], grid)
-    kind, j = candidates(w_sorted, by_freq[0], by_freq[1][:, 0],
-                         by_freq[3] == Status.SUCCESS, peaks)
-    w, a, g, x, st, it = jax.vmap(
-        lambda kk, jj: locate(system_at, u, w_sorted, amplitude, by_freq, kk, jj, cfg, method,
-                              xtol, max_iter))(kind, j)
+    by_freq = tuple(v[order] for v in grid)
+    kind, j = (np.asarray(v) for v in candidates(
+        jnp.asarray(w_sorted), jnp.asarray(by_freq[0]), jnp.asarray(by_freq[1][:, 0]),
+        jnp.asarray(by_freq[3] == Status.SUCCESS), peaks))
+    w, a, g, x, st, it = locate(evaluate_slots, w_sorted, by_freq, kind, j, xtol, max_iter)
     return dict(omegas=w, amplitudes=a, kinds=kind, iterations=it, status=st, jac=g[:, 1:],
                 slopes=g[:, 0], states=x, grid_omegas=grid_w, grid_amplitude=amps,
                 grid_states=states, grid_status=status, grid_jac=grads[:, 1:])

@@ -59,17 +59,6 @@ class RobustPeak(eqx.Module):
                                 for c in self.coexisting])
 
 
-@eqx.filter_jit
-def track(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps):
-    """Responses followed by shooting from ``guesses`` (internal states) at fixed ``omegas``
-    for the design ``u`` (``reparam.forward(u)`` gives the named parameters): per response
-    ``(A, [dA/dω, dA/du...], internal state, status)``."""
-    from ._peak import evaluate_many, shooting_for_design
-
-    return evaluate_many(system, names, reparam, u, omegas, amplitude, guesses, cfg,
-                         shooting_for_design(tol, newton_steps))
-
-
 def stable_responses(system, band, amplitude, *, probes, samples, spread=3.0, seed=0,
                      max_periods=2000, solver=None, rtol=1e-10, atol=1e-10):
     """``[(ω, attractor)]``: the stable periodic responses of attractor maps at ``probes``
@@ -99,7 +88,7 @@ def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probe
     (:func:`attractors`)."""
     from ._design import Reparam
     from ._params import get_param
-    from ._peak import exact_peak
+    from ._peak import evaluate_points, exact_peak
     from ._steady import make_config
 
     if not isinstance(probes, int) or probes < 1:
@@ -126,9 +115,11 @@ def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probe
                 cfg = make_config(system, forcing, solver, rtol, atol)
                 p = jnp.array([float(get_param(system, k)) for k in names])
                 guess = system.to_internal(jnp.asarray(att.state))[None]
-                a, g, _, st = track(system, names, Reparam.plain(len(names)), p,
-                                    jnp.array([w]), jnp.asarray(amplitude, dtype=float), guess,
-                                    cfg, float(tol), int(newton_steps))
+                # in batches of the exact peak's slots: its compiled program, reused
+                a, g, _, st = evaluate_points(
+                    system, names, Reparam.plain(len(names)), p, [w],
+                    jnp.asarray(amplitude, dtype=float), guess, cfg, float(tol),
+                    int(newton_steps), peaks)
                 if int(st[0]) == Status.SUCCESS:
                     value = float(a[0])
                     grad = {k: float(g[0, 1 + i]) for i, k in enumerate(names)}

@@ -107,27 +107,43 @@ def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
     return jax.vmap(one)(omegas, guesses)
 
 
-def _objective_fn(system, names, reparam, omegas, amplitude, guesses, cfg, tol, newton_steps,
-                  objective, softness):
+def _amplitudes_fn(system, names, reparam, omegas, amplitude, guesses, cfg, tol,
+                   newton_steps):
     def f(u):
         p = reparam.forward(u)
         sysp = replace_params(system, dict(zip(names, p)), check=False)
         amps, states, status, _ = band_amplitudes(sysp, omegas, amplitude, guesses, cfg, tol,
                                                   newton_steps)
-        return band_objective(amps, objective, softness), (amps, states, status)
+        return amps, (amps, states, status)
 
     return f
 
 
 @eqx.filter_jit
+def _amplitudes_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
+                        newton_steps):
+    _TRACES["tune_step"] += 1  # runs only when traced: counts compilations
+    f = _amplitudes_fn(system, names, reparam, omegas, amplitude, guesses, cfg, tol,
+                       newton_steps)
+    # forward mode: one tangent per parameter, the Jacobian of every band amplitude
+    jac, aux = jax.jacfwd(f, has_aux=True)(u)
+    return jac, aux
+
+
+@eqx.filter_jit
+def _objective_and_grad(amps, jac, objective, softness):
+    val, g = jax.value_and_grad(lambda a: band_objective(a, objective, softness))(amps)
+    return val, g @ jac
+
+
 def _value_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps,
                    objective, softness):
-    _TRACES["tune_step"] += 1  # runs only when traced: counts compilations
-    f = _objective_fn(system, names, reparam, omegas, amplitude, guesses, cfg, tol,
-                      newton_steps, objective, softness)
-    # forward mode: one tangent per parameter
-    val, aux = f(u)
-    g = jax.jacfwd(lambda v: f(v)[0])(u)
+    """The band objective and its gradient in ``u``: the amplitudes and their Jacobian in one
+    compiled program (whatever the objective: every objective and softness shares it), the
+    objective applied after it by the chain rule."""
+    jac, aux = _amplitudes_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg,
+                                   tol, newton_steps)
+    val, g = _objective_and_grad(aux[0], jac, objective, softness)
     return val, g, aux
 
 

@@ -194,15 +194,14 @@ def locate(evaluate_slots, omegas, grid, kind, j, xtol, max_iter):
         def upd(new, old, active=active):
             return np.where(active.reshape((-1,) + (1,) * (old.ndim - 1)), new, old)
 
-        a_new = np.where(left, a, wn)
-        b_new = np.where(left, wn, b)
-        ga_new = np.where(left, np.where(side == 1, 0.5 * ga, ga), g)
-        gb_new = np.where(left, g, np.where(side == -1, 0.5 * gb, gb))
+        a_new, b_new = np.where(left, a, wn), np.where(left, wn, b)
         stop = ((st_n != Status.SUCCESS) | (np.abs(wn - w) <= xtol * wn)
                 | (b_new - a_new <= xtol * wn) | (g == 0))
-        xa, xb = upd(np.where(left[:, None], xa, x_n), xa), upd(np.where(left[:, None], x_n,
-                                                                        xb), xb)
-        a, b, ga, gb = upd(a_new, a), upd(b_new, b), upd(ga_new, ga), upd(gb_new, gb)
+        xa = upd(np.where(left[:, None], xa, x_n), xa)
+        xb = upd(np.where(left[:, None], x_n, xb), xb)
+        ga = upd(np.where(left, np.where(side == 1, 0.5 * ga, ga), g), ga)
+        gb = upd(np.where(left, g, np.where(side == -1, 0.5 * gb, gb)), gb)
+        a, b = upd(a_new, a), upd(b_new, b)
         side, it = upd(np.where(left, 1, -1), side), upd(it + 1, it)
         w, amp, grad, x, st = (upd(n, o) for n, o in ((wn, w), (amp_n, amp), (grad_n, grad),
                                                        (x_n, x), (st_n, st)))
@@ -298,24 +297,20 @@ def design_system(system, names, reparam, u):
     return replace_params(system, dict(zip(names, reparam.forward(u))), check=False)
 
 
-def evaluate_many(system, names, reparam, u, omegas, amplitude, guesses, cfg, method):
-    """:func:`evaluate` at each of ``omegas`` from its guess (vmapped), for the design ``u``:
-    per frequency ``(A, [dA/dω, dA/du...], internal state, status)``."""
+@eqx.filter_jit
+def evaluate_batch(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
+                   newton_steps):
+    """:func:`evaluate` at each of ``omegas`` from its guess (vmapped, design shooting with
+    ``tol`` and ``newton_steps``) for the design ``u``: per frequency ``(A, [dA/dω,
+    dA/du...], internal state, status)``.  Compiled once per batch size: :func:`peak_core`'s
+    grid pass and its Illinois iterations share it."""
+    method = shooting_for_design(tol, newton_steps)
+
     def system_at(v):
         return design_system(system, names, reparam, v)
 
     return jax.vmap(lambda w, g: evaluate(system_at, u, w, amplitude, g, cfg, method))(
         omegas, guesses)
-
-
-@eqx.filter_jit
-def evaluate_batch(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
-                   newton_steps):
-    """:func:`evaluate_many` with the design shooting (``tol``, ``newton_steps``): per
-    frequency ``(A, [dA/dω, dA/du...], internal state, status)``.  Compiled once per batch
-    size: :func:`peak_core`'s grid pass and its Illinois iterations share it."""
-    return evaluate_many(system, names, reparam, u, omegas, amplitude, guesses, cfg,
-                         shooting_for_design(tol, newton_steps))
 
 
 def evaluate_points(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,

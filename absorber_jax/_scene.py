@@ -80,8 +80,9 @@ Contact laws ``{law = ..., ...}``: ``kelvin_voigt`` | ``hertz`` | ``hunt_crossle
 ``stiffness`` > 0, ``damping`` >= 0, optional ``eps`` > 0 [m] and ``adhesive`` (bool).
 Friction laws: ``coulomb`` (``mu``, ``eps``), ``stribeck`` (``mu_c``, ``mu_s``, ``v_s``,
 ``eps``), ``dahl`` (``mu_c``, ``sigma0``, optional ``eps``), ``lugre`` (``mu_c``, ``mu_s``,
-``v_s``, ``sigma0``, ``sigma1``, optional ``sigma2``, ``eps``).  On a structure Coulomb and
-Stribeck are smoothed, so their ``eps`` [m/s] is required.
+``v_s``, ``sigma0``, ``sigma1``, optional ``sigma2``, ``eps``; without ``eps`` the bristle laws
+use ``|v|`` exactly).  On a structure Coulomb and Stribeck are smoothed, so their ``eps``
+[m/s] is required.
 
 **load**: exactly one of ``dof`` (a name) or ``dofs`` (``{name: weight}``), and
 ``amplitude`` (F0 >= 0 [N]).  **observe**: exactly one of ``dof`` or ``dofs``.

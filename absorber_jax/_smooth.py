@@ -32,6 +32,13 @@ def smooth_abs(v, eps):
     return v * jnp.tanh(v / eps)
 
 
+def abs_or_smooth(v, eps):
+    r"""$|v|$ exactly where ``eps == 0``, else :func:`smooth_abs` (``eps`` may be traced: both
+    branches are evaluated, the unused one on a safe divisor, so gradients stay finite)."""
+    smooth = eps > 0
+    return jnp.where(smooth, smooth_abs(v, jnp.where(smooth, eps, 1.0)), jnp.abs(v))
+
+
 def smooth_clip_positive(f, scale):
     r"""Force clipped at zero, smoothly: $f\,\mathrm{sigmoid}(f/s)$.
 

@@ -40,7 +40,7 @@ def friction(**kw):
         # eps <= 0
         (lambda: aj.Hertz(stiffness=3260.0, damping=20.0, eps=0.0), r"Hertz\.eps must be in \(0"),
         (lambda: aj.Coulomb(mu=0.5, eps=-1e-4), r"Coulomb\.eps must be in \(0"),
-        (lambda: aj.Dahl(mu_c=0.5, sigma0=1e4, eps=0.0), r"Dahl\.eps"),
+        (lambda: aj.Dahl(mu_c=0.5, sigma0=1e4, eps=-1e-4), r"Dahl\.eps"),
         # mu_s < mu_c
         (lambda: aj.Stribeck(mu_c=0.5, mu_s=0.4, v_s=1e-2), r"Stribeck\.mu_s must be in \[0\.5"),
         (lambda: aj.LuGre(mu_c=0.5, mu_s=0.3, v_s=1e-2, sigma0=1e4, sigma1=1e2),

@@ -109,7 +109,8 @@ class Shooting(AbstractSteadyMethod):
     - ``give_up``: with ``root="newton"``, stop after this many Newton steps if the scaled
       residual is still above 1e-2 (an iterate wandering outside Newton's basin); None:
       use the whole budget.  :func:`steady_state` sets 8 when it will retry, so that the
-      marching retry starts at once (LuGre with sigma0 = 1e8: 40 wandering steps cost 50 s).
+      marching retry starts at once (LuGre with sigma0 = 1e8 and |v| smoothed at eps = 1e-4: 40
+      wandering steps cost 50 s).
     """
 
     n: int = eqx.field(static=True, default=1)

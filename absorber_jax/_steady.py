@@ -50,7 +50,7 @@ from ._status import Status
 # Periods marched by the retry before it polishes by shooting: enough to settle near a stable
 # orbit or onto a chaotic attractor's neighbourhood, where shooting from the marched state
 # converges; not the 4000 of a Marching solve, which a response that never becomes periodic
-# spends in full (LuGre σ0 = 1e8: 4000 periods of 145k steps each).
+# spends in full (LuGre σ0 = 1e8 smoothed at eps = 1e-4: 4000 periods of 145k steps each).
 RETRY_MARCH_PERIODS = 200
 
 

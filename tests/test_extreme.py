@@ -81,7 +81,10 @@ def _check_stiff_bristle_orbit(system, forcing, ss):
     np.testing.assert_allclose(ys[-1] / scale, ys[0] / scale, atol=1e-5)
 
 
-SLOW_CASES = ("absorber_mass_1e-6",)  # CI time
+# CI time: cases whose physics other tests also cover (N = 0: test_steady's zero-normal-force
+# FRF against the closed form; LuGre gradients: test_design; omega = 0.5 accepts a flag
+# either way) run with -m slow
+SLOW_CASES = ("absorber_mass_1e-6", "normal_force_0", "lugre_sigma0_1e6", "omega_0.5")
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_CASES

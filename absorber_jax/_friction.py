@@ -104,12 +104,17 @@ BRISTLE_SLIDING_SPEED = 5e-3
 # crossings of v = 0 (the saltation matrix of a continuous field is the identity), and
 # forward-mode tangents give the monodromy matrix.  The smoothed |v| ~ v tanh(v/eps) turns the
 # bristle into a plain linear spring once its velocity falls below eps, so the bound
-# |sigma0 z| <= max g no longer holds; with stiff bristles the stuck velocities are tiny
-# (omega mu_s N / sigma0 = 6e-7 m/s at sigma0 = 1e8, F0 = 10 N, omega = 50 rad/s) and at
-# eps = 1e-4 the model has a fully stuck period-1 orbit whose bristles hold 5.0 N against
-# mu_s N = 1.2 N (1.9996 mm, found by continuation in sigma0), while the exact law's orbit
-# (2.4501 mm, stable) is found by shooting from the linear guess in 7 Newton steps and
-# marching from rest settles on it (120 periods, amplitudes equal to 1e-7).
+# |sigma0 z| <= max g no longer holds; stiff bristles stick at ~omega mu_s N / sigma0, and at
+# sigma0 = 1e8, eps = 1e-4 the smoothed model has a fully stuck orbit holding 5 N against
+# mu_s N = 1.2 N (scripts/study_lugre_stiff_bristles.py).
+
+
+def _bristle_rate(v, z, sigma0, eps, level):
+    """``ż = v - σ0 |v| z / level`` (Dahl: ``level = F_c``; LuGre: ``level = g(v)``), with
+    ``|v|`` exact (``eps = 0``) or smoothed."""
+    return jnp.stack([v - sigma0 * abs_or_smooth(v, eps) * z[0] / level])
+
+
 # smoothing length [m/s] of Coulomb and Stribeck when they are asked to smooth without one
 DEFAULT_EPS = 1e-4
 
@@ -295,9 +300,7 @@ class Dahl(AbstractFrictionLaw):
         return self.sigma0 * z[0]
 
     def state_rate(self, v, z, normal_force):
-        return jnp.stack(
-            [v - self.sigma0 * abs_or_smooth(v, self.eps) * z[0] / self._fc(normal_force)]
-        )
+        return _bristle_rate(v, z, self.sigma0, self.eps, self._fc(normal_force))
 
     def stored_energy(self, z):
         return 0.5 * self.sigma0 * z[0] ** 2
@@ -383,9 +386,7 @@ class LuGre(AbstractFrictionLaw):
         return jnp.maximum(lvl, 1e-300)
 
     def state_rate(self, v, z, normal_force):
-        return jnp.stack(
-            [v - self.sigma0 * abs_or_smooth(v, self.eps) * z[0] / self.g(v, normal_force)]
-        )
+        return _bristle_rate(v, z, self.sigma0, self.eps, self.g(v, normal_force))
 
     def force(self, v, z, normal_force):
         zdot = self.state_rate(v, z, normal_force)[0]

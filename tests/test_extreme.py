@@ -81,6 +81,10 @@ def _check_stiff_bristle_orbit(system, forcing, ss):
     np.testing.assert_allclose(ys[-1] / scale, ys[0] / scale, atol=1e-5)
 
 
+# further checks of a case's steady state, beyond "finite or flagged"
+STEADY_CHECKS = {"lugre_sigma0_1e8": _check_stiff_bristle_orbit}
+
+
 # CI time: cases whose physics other tests also cover (N = 0: test_steady's zero-normal-force
 # FRF against the closed form; LuGre gradients: test_design; omega = 0.5 accepts a flag
 # either way) run with -m slow
@@ -100,8 +104,8 @@ def test_extreme_case(name):
         ss = aj.steady_state(system, forcing, max_steps=300_000)
         out["steady"] = _finite_or_flagged(ss.status, ss.amplitude, ss.state)
         amp = float(ss.amplitude)
-        if name == "lugre_sigma0_1e8":
-            _check_stiff_bristle_orbit(system, forcing, ss)
+        if name in STEADY_CHECKS:
+            STEADY_CHECKS[name](system, forcing, ss)
     else:
         # value_and_grad solves the same steady state (shooting) and differentiates it; the
         # separate steady_state call is skipped here to keep CI short (LuGre 1e6: ~1 min)

@@ -86,9 +86,10 @@ STEADY_CHECKS = {"lugre_sigma0_1e8": _check_stiff_bristle_orbit}
 
 
 # CI time: cases whose physics other tests also cover (N = 0: test_steady's zero-normal-force
-# FRF against the closed form; LuGre gradients: test_design; omega = 0.5 accepts a flag
-# either way) run with -m slow
-SLOW_CASES = ("absorber_mass_1e-6", "normal_force_0", "lugre_sigma0_1e6", "omega_0.5")
+# FRF against the closed form; N = 1e6, stuck: test_stickslip's stuck orbit against exp(AT);
+# LuGre gradients: test_design; omega = 0.5 accepts a flag either way) run with -m slow
+SLOW_CASES = ("absorber_mass_1e-6", "normal_force_0", "normal_force_stuck_1e6",
+              "lugre_sigma0_1e6", "omega_0.5")
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_CASES

@@ -13,7 +13,13 @@ from . import presets  # noqa: E402
 from ._abstract_system import AbstractSystem  # noqa: E402
 from ._attractors import Attractor, AttractorMap, attractors, bifurcation_diagram  # noqa: E402
 from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
-from ._continuation import Bifurcation, Branch, PseudoArclength, continuation  # noqa: E402
+from ._continuation import (  # noqa: E402
+    Bifurcation,
+    Branch,
+    PseudoArclength,
+    band_continuation,
+    continuation,
+)
 from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
 from ._elements import (  # noqa: E402
     AbstractElement,
@@ -71,7 +77,8 @@ __all__ = [
     "structure_from_modes", "AbstractSystem", "StructuralSystem", "AbstractElement", "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
     "Attractor", "AttractorMap", "attractors", "bifurcation_diagram", "plot_bifurcation_diagram",
-    "Bifurcation", "Branch", "PseudoArclength", "continuation", "plot_branches",
+    "Bifurcation", "Branch", "PseudoArclength", "band_continuation", "continuation",
+    "plot_branches",
     "plot_frequency_response",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",

@@ -14,8 +14,11 @@ F0 = 3 N, band 20–45 rad/s.
 - **Continuation in ω over 20–45 rad/s** from both ends of the band (``direction="up"``
   from 20, ``"down"`` from 45), each timed with its compilation: points, the range it
   covers, how it ended, bifurcations found.
+- **Band continuation** (``aj.band_continuation``, 8 starts, 60 points per half-branch at
+  most), timed with its compilation: the parameter ranges the 16 half-branches cover
+  together, points, bifurcations.
 
-    python scripts/benchmark_hard_contacts.py [--scenes kv,hertz] [--parts map,cont]
+    python scripts/benchmark_hard_contacts.py [--scenes kv,hertz] [--parts map,cont,band]
                                               [--scipy-periods 40] [--out FILE]
 
 Prints each result as it comes; ``--out`` appends them to FILE
@@ -102,6 +105,29 @@ def continuation(name):
                f"corrector iterations {np.bincount(np.asarray(br.steady.iterations)).tolist()}")
 
 
+def band(name):
+    system = scene(name)
+    t0 = time.perf_counter()
+    brs = aj.band_continuation(system, aj.Harmonic(amplitude=F0, omega=BAND[0]), "omega",
+                               bounds=BAND, starts=8, method=aj.PseudoArclength(max_points=60))
+    dt = time.perf_counter() - t0
+    spans = sorted((b.values[b.ok].min(), b.values[b.ok].max()) for b in brs if b.ok.any())
+    covered = []
+    for a, b in spans:
+        if covered and a <= covered[-1][1]:
+            covered[-1][1] = max(covered[-1][1], b)
+        else:
+            covered.append([a, b])
+    kinds = {k: sum(len(b.of_kind(k)) for b in brs)
+             for k in ("fold", "period_doubling", "neimark_sacker")}
+    ends = [b.termination for b in brs]
+    report(f"[{name}] band_continuation, 8 starts over {BAND[0]}-{BAND[1]} rad/s: {dt:.1f} s "
+           f"with compilation, {sum(len(b) for b in brs)} points on {len(brs)} half-branches "
+           f"(ended: {dict((e, ends.count(e)) for e in sorted(set(ends)))}); covered "
+           f"{', '.join(f'{a:.3f}-{b:.3f}' for a, b in covered)} rad/s; stable points "
+           f"{sum(int(b.stable.sum()) for b in brs)}; bifurcations {kinds}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenes", default="kv,hertz")
@@ -114,6 +140,8 @@ def main():
             attractor_map(name, a.scipy_periods)
         if "cont" in a.parts:
             continuation(name)
+        if "band" in a.parts:
+            band(name)
     if a.out:
         with open(a.out, "a") as fh:
             fh.write("\n".join(LINES) + "\n")

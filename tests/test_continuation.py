@@ -70,6 +70,40 @@ def test_folds_are_the_jump_frequencies_of_slow_sweeps():
     assert br.termination == "bounds" and np.all(br.ok)
 
 
+def test_band_continuation_covers_the_band_and_finds_both_folds():
+    """Branches from two start values followed together (four half-branches, one vmapped
+    corrector call per round) cover the hysteresis band of the hardening oscillator; the
+    folds they find are the jump frequencies of the slow marching sweeps (1e-3), every
+    point converged, the points between the folds unstable and a point's multipliers those
+    of steady_state there (1e-5)."""
+    up = slow_sweep_jumps("up", **HARD)
+    down = slow_sweep_jumps("down", **HARD)
+    sysm = hardening()
+    forcing = aj.Harmonic(amplitude=HARD["F0"], omega=1.0)
+    brs = aj.band_continuation(sysm, forcing, "omega", bounds=(0.8, 1.6), starts=2)
+    assert len(brs) == 4 and all(np.all(b.ok) for b in brs)
+    assert all(b.termination == "bounds" for b in brs), [b.termination for b in brs]
+    assert min(b.values.min() for b in brs) == pytest.approx(0.8, abs=1e-12)
+    assert max(b.values.max() for b in brs) == pytest.approx(1.6, abs=1e-12)
+    folds = sorted({round(f.value, 6) for b in brs for f in b.of_kind("fold")})
+    print(f"band_continuation folds {folds}; jumps {up['W_jump']:.6f} {down['W_jump']:.6f}")
+    for w in (up["W_jump"], down["W_jump"]):
+        assert min(abs(f - w) / w for f in folds) < 1e-3
+    # on the half-branch through both folds: stable outside them, unstable between
+    two = [b for b in brs if len(b.of_kind("fold")) == 2]
+    assert len(two) >= 1
+    for b in two:
+        i1, i2 = (f.index for f in b.of_kind("fold"))
+        assert np.all(b.stable[:i1]) and np.all(b.stable[i2 + 2:])
+        assert not np.any(b.stable[i1 + 2:i2])
+    b = brs[1]
+    i = len(b) // 2
+    ss = aj.steady_state(sysm, aj.Harmonic(amplitude=HARD["F0"], omega=float(b.values[i])),
+                         guess=b.steady.state[i])
+    assert np.max(np.abs(np.sort_complex(b.multipliers[i])
+                         - np.sort_complex(ss.multipliers))) < 1e-5
+
+
 def test_multipliers_at_a_branch_point_equal_steady_state():
     """The Floquet multipliers the continuation reads off its final Jacobian equal those of
     steady_state at the same parameter, and both equal the exact piecewise-linear ones

@@ -245,6 +245,12 @@ def test_bad_input_is_named():
         p = kw.pop("parameter", "omega")
         with pytest.raises(ValueError, match=text):
             aj.continuation(system, f, p, **kw)
+    for kw, text in [(dict(bounds=(0.5, 1.5), starts=0), "starts"),
+                     (dict(bounds=(0.5, 1.5), starts=[0.2, 1.0]), "starts must lie inside"),
+                     (dict(bounds=(0.5, 1.5), starts="many"), "starts"),
+                     (dict(bounds=(1.5, 0.5)), "bounds")]:
+        with pytest.raises(ValueError, match=text):
+            aj.band_continuation(system, f, "omega", **kw)
     with pytest.raises(ValueError, match="min_step <= step"):
         aj.PseudoArclength(step=1.0, max_step=0.1)
     with pytest.raises(ValueError, match="max_points"):

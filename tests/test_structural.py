@@ -38,7 +38,9 @@ def test_nlvib_example_03_matches_the_event_exact_reference_both_ways():
         for i, w in enumerate(om):
             r = ref.periodic_orbit(w, x_guess=np.asarray(fr.states[i]))
             assert r["converged"]
-            assert np.max(np.abs(r["x0"] - fr.states[i])) < 1e-6
+            # the state to shooting's tolerance (1e-6 on the scaled residual, amplified by
+            # 1 / (1 - |mu|) on a lightly damped orbit: 1.15e-6 seen on one machine)
+            assert np.max(np.abs(r["x0"] - fr.states[i])) < 1e-5
             q2 = ref.harmonic_amplitudes(r["x0"], w)["Q2"]
             worst = max(worst, abs(fr.dof("x2", "harmonic")[i] - q2) / q2)
             assert fr.harmonic[i] == fr.dof("x2", "harmonic")[i]      # observe="x2"

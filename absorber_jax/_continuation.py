@@ -438,7 +438,7 @@ class _Driver:
         requests, see :func:`_follow`)."""
         lo, hi = 0.0, h
         glo, ghi = _g(kind, a), None
-        b = yield (self, a["z"] + h * a["t"], a["t"])
+        b = yield (self, a["z"] + h * a["t"], a["t"], False)
         ghi = _g(kind, b)
         best, evals, side = b, 1, 0
         if not (np.isfinite(glo) and np.isfinite(ghi)) or glo * ghi > 0:
@@ -449,7 +449,7 @@ class _Driver:
             s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
             if not lo < s < hi:
                 s = 0.5 * (lo + hi)
-            p = yield (self, a["z"] + s * a["t"], a["t"])
+            p = yield (self, a["z"] + s * a["t"], a["t"], False)
             evals += 1
             if not p["ok"]:
                 break
@@ -547,8 +547,8 @@ def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "om
         # retries (marching, then shooting again) only where that fails: its program costs
         # a compilation of its own (~20 s on the hard-contact scenes of
         # scripts/benchmark_hard_contacts.py)
-        first = drv.solve(np.append(np.asarray(g) / np.asarray(s0), p0), _axis(prob, direction),
-                          True)
+        e = _axis(prob, direction)
+        first = drv.solve(np.append(np.asarray(g) / np.asarray(s0), p0), e, True)
         if not first["ok"]:
             ss = steady_state(system, forcing, method=shooting, guess=guess, solver=solver,
                               rtol=rtol, atol=atol, max_steps=max_steps)
@@ -556,7 +556,7 @@ def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "om
             if int(ss.status) != Status.SUCCESS:
                 first = dict(ss=jax.tree_util.tree_map(np.asarray, ss), ok=False)
             else:
-                first = drv.solve(np.append(x0, p0), _axis(prob, direction), True)
+                first = drv.solve(np.append(x0, p0), e, True)
         rejoin = None
     else:
         first, rejoin = _switch(drv, system, forcing, start, s0, p0, cfg, parameter, pscale)
@@ -622,8 +622,10 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
             value0s.append(float(v))
             guesses.append([(np.append(f * x0, v / pscale), _axis(prob, direction))
                             for f in START_SCALES])
+    # both half-branches of a start solve its first orbit (on opposite hyperplane normals):
+    # the first rounds run the whole batch anyway, so the copy costs no time
     with _bar(method.max_points * len(drivers), parameter, progress) as bar:
-        results = _run_batched([_follow(drv, g, None, locate, bar)
+        results = _run_batched([_from_guesses(drv, g, locate, bar)
                                 for drv, g in zip(drivers, guesses)], drivers[0].prob, method)
     return tuple(_branch(*r, drv, v, system) for r, drv, v in zip(results, drivers, value0s))
 
@@ -671,18 +673,11 @@ def _axis(prob, direction):
     return e
 
 
-class _bar:
-    def __init__(self, total, parameter, progress):
-        from tqdm.auto import tqdm
+def _bar(total, parameter, progress):
+    """A tqdm bar over branch points (a context manager)."""
+    from tqdm.auto import tqdm
 
-        self.tqdm = tqdm(total=total, desc=f"continuation in {parameter}",
-                         disable=not progress)
-
-    def __enter__(self):
-        return self.tqdm
-
-    def __exit__(self, *exc):
-        self.tqdm.close()
+    return tqdm(total=total, desc=f"continuation in {parameter}", disable=not progress)
 
 
 def _branch(points, bifs, termination, drv, value0, system):
@@ -697,32 +692,34 @@ def _branch(points, bifs, termination, drv, value0, system):
 # ------------------------------------------------------------------- following a branch
 
 
+def _from_guesses(drv, guesses, locate, bar):
+    """:func:`_follow` from the first orbit that Newton reaches from one of ``guesses``
+    (``(z0, t)`` pairs, tried in turn)."""
+    for z0, e in guesses:
+        first = yield (drv, z0, e, True)
+        if first["ok"]:
+            break
+    return (yield from _follow(drv, first, None, locate, bar))
+
+
 def _follow(drv, first, rejoin, locate, bar):
-    """Follow the branch from ``first`` (a point, or ``(z, t)`` for a first corrector
-    request) until it ends; a generator: it yields corrector requests ``(driver, z_pred,
-    t_prev[, patient])``, is sent the point solved for each and returns ``(points, bifurcations,
-    termination)`` (:func:`_run` serves it one request at a time, :func:`_run_batched`
-    many branches' requests in one vmapped call)."""
+    """Follow the branch from the point ``first`` until it ends; a generator: it yields
+    corrector requests ``(driver, z_pred, t_prev, patient)``, is sent the point solved for
+    each and returns ``(points, bifurcations, termination)`` (:func:`_run` serves it one
+    request at a time, :func:`_run_batched` many branches' requests in one vmapped call)."""
     method = drv.method
-    if isinstance(first, list):
-        # candidate first guesses, tried in turn
-        for z0, e in first:
-            first = yield (drv, z0, e, True)
-            if first["ok"]:
-                break
     points = [drv.rescale(first) if first["ok"] else first]
     bifs = []
     termination = "start_failed" if not first["ok"] else None
     h = method.step
     parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
-    if bar is not None:
-        bar.update(1)
+    bar.update(1)
     while termination is None:
         if len(points) >= method.max_points:
             termination = "max_points"
             break
         a = points[-1]
-        b = yield (drv, a["z"] + h * a["t"], a["t"])
+        b = yield (drv, a["z"] + h * a["t"], a["t"], False)
         turn = float(np.clip(b["t"] @ a["t"], -1.0, 1.0)) if b["ok"] else -1.0
         # a corner (the tangent turning abruptly where a contact starts to graze: the flow's
         # Jacobian varies like the square root of the distance to grazing) is accepted once
@@ -744,7 +741,7 @@ def _follow(drv, first, rejoin, locate, bar):
             zb[-1] = bound
             e = np.zeros_like(zb)
             e[-1] = np.sign(p_b - a["z"][-1])
-            c = yield (drv, zb, e)
+            c = yield (drv, zb, e, False)
             if c["ok"]:
                 c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
                 b = c
@@ -753,9 +750,8 @@ def _follow(drv, first, rejoin, locate, bar):
             bifs.append((yield from _bifurcation(drv, kind, a, b, len(points) - 1, locate,
                                                  float(np.linalg.norm(b["z"] - a["z"])))))
         points.append(b)
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
+        bar.update(1)
+        bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
         if rejoin is not None and rejoin(b["xi"], b["z"][-1]):
             termination = "rejoined"
             break
@@ -814,7 +810,7 @@ def _run_batched(gens, prob, method):
             prob, jnp.stack([jnp.asarray(r[0].prob.s0) for r in reqs]),
             jnp.asarray(np.stack([r[1] for r in reqs])),
             jnp.asarray(np.stack([r[2] for r in reqs])),
-            jnp.asarray([len(r) > 3 and bool(r[3]) for r in reqs]), method.tol,
+            jnp.asarray([bool(r[3]) for r in reqs]), method.tol,
             method.newton_steps)
         z, t, ss = jax.tree_util.tree_map(np.asarray, (z, t, ss))
         for j, i in enumerate(idx):

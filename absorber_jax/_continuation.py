@@ -53,7 +53,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, require_x64
-from ._flow import _Config, accurate_tangents, make_config, period_map, state_scale
+from ._flow import _Config, _flow, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, SteadyState, _finish, read_through
 from ._params import replace_params, resolve
@@ -71,6 +71,13 @@ JUMP_TOL = 1e-3
 # Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py Newton from it fails at 29.4
 # and 35.9 rad/s)
 START_SCALES = (1.0, 0.3, 0.1)
+# band_continuation's starts where no scaled linear response converges: first guesses from
+# the CLOSE_RETURNS closest returns of a trajectory marched CLOSE_RETURN_PERIODS periods (the
+# first CLOSE_RETURN_SKIP left out as transient)
+CLOSE_RETURN_PERIODS, CLOSE_RETURN_SKIP, CLOSE_RETURNS = 240, 40, 3
+# band_continuation's fill passes start new branches in the parts of the band no branch
+# reached that are wider than this fraction of it
+GAP = 2e-3
 # a sharp turn of the tangent is accepted as a corner once the step is reduced this much
 CORNER_REDUCTION = 16.0
 
@@ -230,6 +237,17 @@ class _Problem(eqx.Module):
         sc = state_scale(sysp, forcp)
         xn, st = period_map(sysp, forcp, x * self.s0 / sc, self.n, self.cfg)
         return xn * sc / self.s0 - x, st
+
+    def samples(self, z, periods):
+        """The unknowns' states after each ``n`` forcing periods for ``periods`` times from
+        ``z`` (at its parameter), and the integrator's status."""
+        x, p = z[:-1], z[-1]
+        sysp, forcp = self.at(p)
+        sc = state_scale(sysp, forcp)
+        ts = jnp.arange(1, periods + 1) * (self.n * forcp.period)
+        ys, st = _flow((sysp, forcp), x * self.s0 / sc, ts[-1], ts,
+                       cfg=self.cfg.over_periods(self.n * periods))
+        return ys * sc / self.s0, st
 
 
 def _set_value(system, forcing, name, value):
@@ -568,8 +586,8 @@ def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "om
 
 def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "omega", *,
                       bounds, starts=8, method: PseudoArclength | None = None, n: int = 1,
-                      solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000, locate=True,
-                      progress=False) -> tuple:
+                      fill: int = 2, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000,
+                      locate=True, progress=False) -> tuple:
     """Cover a parameter band with branches of period-``n`` orbits followed from several
     start values at once: every start up and down, each half-branch bounded by the
     neighbouring start values (so every cell between two starts is followed from both
@@ -588,9 +606,18 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
     - ``starts``: the number of start values (the centres of that many equal cells of the
       bounds) or the start values themselves (inside the bounds).  The first orbit at each
       is Newton shooting from the linear response (scaled by ``START_SCALES`` in turn where
-      that fails); a start where all fail gives a branch that ended ``"start_failed"``.
+      that fails), then from the closest returns of a trajectory marched from it
+      (``CLOSE_RETURNS`` of ``CLOSE_RETURN_PERIODS`` periods: a chaotic motion passes near
+      the unstable periodic orbits embedded in it); a start where all fail gives two
+      branches that ended ``"start_failed"``, and its neighbours follow its cells.
+    - ``fill``: passes, after the starts' branches end, that start new ones (seeded the same
+      way) at the centres of the parts of the band none reached (the widest, up to a quarter
+      of the starts' number per pass; each followed within its part): a branch that folds
+      back on both sides of a part leaves it uncovered (the Kelvin–Voigt scene: the branches
+      from 27.8 and 30.9 rad/s turn at folds at 28.35 and 29.25).
 
-    **Returns** a tuple of :class:`Branch` es, two per start (down, then up).
+    **Returns** a tuple of :class:`Branch` es, two per start (down, then up), the fill
+    passes' after the starts'.
     """
     method, lo, hi = _check_common(system, forcing, parameter, bounds, method, n,
                                    "band_continuation")
@@ -606,28 +633,84 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
                 from None
         if values.size < 1 or not np.all((values >= lo) & (values <= hi)):
             raise ValueError(f"starts must lie inside bounds ({lo:g}, {hi:g}), got {starts!r}")
-    edges = np.concatenate([[lo], values, [hi]])
+    if not isinstance(fill, int) or isinstance(fill, bool) or fill < 0:
+        raise ValueError(f"fill must be a non-negative integer, got {fill!r}")
     cfg = _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps)
-    pscale = max(abs(lo), abs(hi))
-    drivers, guesses, value0s = [], [], []
-    for i, v in enumerate(values):
-        sysv, forcv = _set_value(system, forcing, parameter, float(v))
-        s0 = state_scale(sysv, forcv)
-        prob = _Problem(system=system, forcing=forcing, s0=s0, pscale=jnp.asarray(pscale),
-                        cfg=cfg, parameter=parameter, n=n)
-        x0 = np.asarray(sysv.linear_guess(forcv)) / np.asarray(s0)
-        for direction, cell in (("down", (edges[i], v)), ("up", (v, edges[i + 2]))):
-            drv = _Driver(prob, method, cell)
+    base = _Problem(system=system, forcing=forcing, s0=state_scale(system, forcing),
+                    pscale=jnp.asarray(max(abs(lo), abs(hi))), cfg=cfg, parameter=parameter,
+                    n=n)
+    lanes = 2 * len(values)                 # the batch of the half-branches, for every phase
+    out = []
+    with _bar(method.max_points * lanes, parameter, progress) as bar:
+        out += _band_pass(base, method, values, [(lo, hi)] * len(values), lanes, locate, bar)
+        for _ in range(fill):
+            # as many as the compiled batches hold (their two half-branches each)
+            gaps = _gaps(out, lo, hi)[:max(1, lanes // (4 if lanes >= 8 else 2))]
+            if not gaps:
+                break
+            bar.total += method.max_points * 2 * len(gaps)
+            out += _band_pass(base, method, np.array([0.5 * (g0 + g1) for g0, g1 in gaps]),
+                              gaps, lanes, locate, bar)
+    return tuple(_branch(*r, drv, v, system) for r, drv, v in out)
+
+
+def _band_pass(base, method, values, limits, lanes, locate, bar):
+    """Half-branches from the start ``values`` (start ``i`` followed within ``limits[i]``),
+    all together; returns ``[(result, driver, start value)]``, two per start (down, up)."""
+    pscale = float(base.pscale)
+    starters, guesses = [], []
+    for v in values:
+        sysv, forcv = _set_value(base.system, base.forcing, base.parameter, float(v))
+        prob = dataclasses.replace(base, s0=state_scale(sysv, forcv))
+        x0 = np.asarray(sysv.linear_guess(forcv)) / np.asarray(prob.s0)
+        starters.append(_Driver(prob, method, (float(v), float(v))))
+        guesses.append([np.append(f * x0, v / pscale) for f in START_SCALES])
+    up = _axis(base, "up")
+    # the first orbit at every start, all starts together: Newton from the scaled linear
+    # responses, then, where none converged, from the closest returns of a marched
+    # trajectory (orbits near an unstable period-n orbit pass close to it again n periods
+    # later: the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py has no period-1
+    # orbit near its linear response at 30.9 rad/s, where the motion is chaotic)
+    firsts = _run_batched([_first_orbit(d, g, up) for d, g in zip(starters, guesses)], base,
+                          method, lanes)
+    missing = [i for i, f in enumerate(firsts) if not f["ok"]]
+    if missing:
+        seeds = _close_returns([starters[i] for i in missing], [guesses[i][0] for i in missing])
+        again = _run_batched([_first_orbit(starters[i], g, up) for i, g in zip(missing, seeds)],
+                             base, method, lanes)
+        for i, f in zip(missing, again):
+            firsts[i] = f if f is not None else firsts[i]
+    # each start's half-branches are bounded by the nearest starts that have an orbit (every
+    # cell between two of them is then followed from both ends; a start without one leaves
+    # its cells to its neighbours) and by its limits
+    live = np.flatnonzero([f["ok"] for f in firsts])
+    drivers, gens = [], []
+    for i, (v, d, first, (a, b)) in enumerate(zip(values, starters, firsts, limits)):
+        below, above = values[live[live < i]], values[live[live > i]]
+        for sign, cell in ((-1.0, (max(a, below[-1]) if below.size else a, v)),
+                           (1.0, (v, min(b, above[0]) if above.size else b))):
+            drv = _Driver(d.prob, method, cell)
             drivers.append(drv)
-            value0s.append(float(v))
-            guesses.append([(np.append(f * x0, v / pscale), _axis(prob, direction))
-                            for f in START_SCALES])
-    # both half-branches of a start solve its first orbit (on opposite hyperplane normals):
-    # the first rounds run the whole batch anyway, so the copy costs no time
-    with _bar(method.max_points * len(drivers), parameter, progress) as bar:
-        results = _run_batched([_from_guesses(drv, g, locate, bar)
-                                for drv, g in zip(drivers, guesses)], drivers[0].prob, method)
-    return tuple(_branch(*r, drv, v, system) for r, drv, v in zip(results, drivers, value0s))
+            gens.append(_follow(drv, dict(first, t=sign * first["t"]), None, locate, bar))
+    results = _run_batched(gens, base, method, lanes)
+    return [(r, drv, float(v)) for r, drv, v in zip(results, drivers, np.repeat(values, 2))]
+
+
+def _gaps(out, lo, hi):
+    """The parts of ``(lo, hi)`` that no converged point of the half-branches ``out`` (as
+    :func:`_band_pass` returns them) reached, wider than ``GAP`` of the band, widest
+    first."""
+    spans = sorted((min(v), max(v)) for v in
+                   ([q["z"][-1] * float(drv.prob.pscale) for q in pts if q["ok"]]
+                    for (pts, _, _), drv, _ in out) if v)
+    gaps, reach = [], lo
+    for a, b in spans:
+        if a > reach:
+            gaps.append((reach, a))
+        reach = max(reach, b)
+    gaps.append((reach, hi))
+    return sorted((g for g in gaps if g[1] - g[0] > GAP * (hi - lo)),
+                  key=lambda g: g[0] - g[1])
 
 
 def _check_common(system, forcing, parameter, bounds, method, n, where):
@@ -692,14 +775,47 @@ def _branch(points, bifs, termination, drv, value0, system):
 # ------------------------------------------------------------------- following a branch
 
 
-def _from_guesses(drv, guesses, locate, bar):
-    """:func:`_follow` from the first orbit that Newton reaches from one of ``guesses``
-    (``(z0, t)`` pairs, tried in turn)."""
-    for z0, e in guesses:
-        first = yield (drv, z0, e, True)
-        if first["ok"]:
+def _first_orbit(drv, guesses, e):
+    """The first orbit that Newton reaches from one of ``guesses`` (tried in turn) on the
+    hyperplane normal to ``e``, or the last failed one (None without guesses); a generator
+    of corrector requests like :func:`_follow`."""
+    point = None
+    for z0 in guesses:
+        point = yield (drv, z0, e, True)
+        if point["ok"]:
             break
-    return (yield from _follow(drv, first, None, locate, bar))
+    return point
+
+
+def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETURNS):
+    """First guesses from a trajectory marched from each ``z0`` (one vmapped solve for all
+    the drivers): the states after which it came closest to returning ``n`` periods later
+    (distances scaled by the spread of the samples; the first ``CLOSE_RETURN_SKIP`` samples
+    are transient and left out; one guess per near passage)."""
+    prob = drivers[0].prob
+    ys, st = _march_many(prob, jnp.stack([d.prob.s0 for d in drivers]),
+                         jnp.asarray(np.stack(z0s)), periods)
+    out = []
+    for y, s, z0 in zip(np.asarray(ys)[:, CLOSE_RETURN_SKIP:], np.asarray(st), z0s):
+        picks = []
+        if s == Status.SUCCESS and np.all(np.isfinite(y)):
+            d = np.max(np.abs(np.diff(y, axis=0)) / (np.std(y, axis=0) + 1e-12), axis=1)
+            for j in np.argsort(d):
+                if all(abs(j - k) > 1 for k in picks):
+                    picks.append(j)
+                if len(picks) == count:
+                    break
+        out.append([np.append(y[j], z0[-1]) for j in picks])
+    return out
+
+
+@eqx.filter_jit
+def _march_many(prob, s0, z0, periods):
+    """:meth:`_Problem.samples` vmapped over state scales and starting points."""
+    def one(s, z):
+        return dataclasses.replace(prob, s0=s).samples(z, periods)
+
+    return jax.vmap(one)(s0, z0)
 
 
 def _follow(drv, first, rejoin, locate, bar):
@@ -789,23 +905,30 @@ def _corrector_many(prob, s0, z_pred, t_prev, patient, tol, newton_steps):
     return jax.vmap(one)(s0, z_pred, t_prev, patient)
 
 
-def _run_batched(gens, prob, method):
+def _run_batched(gens, prob, method, lanes=None):
     """Serve many branches' corrector requests together: each round, one request from
-    every branch still going, solved in one vmapped call whose batch has the size of the
-    first round (padded by repeating a request; the ends of branches do not recompile)."""
+    every branch still going, solved in one vmapped call of ``lanes`` lanes (default one
+    per branch) or, once no more than a half or a quarter of that is pending, of that many
+    (padded by repeating a request: the ends of branches do not recompile; callers that
+    batch several phases give them all the same ``lanes``: one compilation per batch size,
+    ~5 s each on the hard-contact scenes)."""
+    lanes = len(gens) if lanes is None else lanes
+    # the few branches snaking through folds, or locating bifurcations, go on for many more
+    # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
+    # on 60 rounds of 4 branches padded to 16 before the smaller batches): the batch is
+    # halved, down to a quarter, while no more than that is pending
+    sizes = [lanes] + ([lanes // 2, lanes // 4] if lanes >= 8 else [])
     results = [None] * len(gens)
     pending = {}
     for i, g in enumerate(gens):
-        pending[i] = next(g)
+        try:
+            pending[i] = next(g)
+        except StopIteration as stop:       # a branch that asks for nothing (start_failed)
+            results[i] = stop.value
     while pending:
         idx = list(pending)
-        # the batch: all the branches, or a quarter of them once that many are left (the
-        # few snaking through folds, or locating bifurcations, for many more rounds: the
-        # Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s on 60
-        # rounds of 4 branches padded to 16); two batch sizes, two compilations
-        quarter = len(gens) // 4 if len(gens) >= 8 else len(gens)
-        lanes = len(gens) if len(idx) > quarter else quarter
-        reqs = [pending[i] for i in idx] + [pending[idx[0]]] * (lanes - len(idx))
+        size = min(z for z in sizes if z >= len(idx))
+        reqs = [pending[i] for i in idx] + [pending[idx[0]]] * (size - len(idx))
         z, t, ss = _corrector_many(
             prob, jnp.stack([jnp.asarray(r[0].prob.s0) for r in reqs]),
             jnp.asarray(np.stack([r[1] for r in reqs])),

@@ -104,6 +104,73 @@ def test_band_continuation_covers_the_band_and_finds_both_folds():
                          - np.sort_complex(ss.multipliers))) < 1e-5
 
 
+def test_band_continuation_fills_the_parts_its_branches_did_not_reach():
+    """One start whose down half-branch stops short (max_points) leaves the low end of the
+    band uncovered: the fill passes start branches there, every point of them an orbit of
+    the exact piecewise-linear reference (amplitude 1e-6), and together they cover the
+    band; without fill the gap stays."""
+    sysm = hardening()
+    forcing = aj.Harmonic(amplitude=HARD["F0"], omega=1.0)
+    method = aj.PseudoArclength(max_points=10)
+    lo, hi = 0.8, 1.6
+    alone = aj.band_continuation(sysm, forcing, "omega", bounds=(lo, hi), starts=[1.2],
+                                 method=method, fill=0)
+    assert len(alone) == 2 and alone[0].termination == "max_points"
+    assert min(b.values.min() for b in alone) > lo + 0.1
+    brs = aj.band_continuation(sysm, forcing, "omega", bounds=(lo, hi), starts=[1.2],
+                               method=method, fill=4)
+    assert len(brs) > 2 and all(np.all(b.ok) for b in brs)
+    spans = sorted((b.values.min(), b.values.max()) for b in brs)
+    reach = lo
+    for a, b in spans:
+        assert a <= reach + 2e-3 * (hi - lo), f"gap {reach:.4f}-{a:.4f}"
+        reach = max(reach, b)
+    assert reach >= hi - 2e-3 * (hi - lo)
+    for b in brs[2:]:                       # the fill passes' branches against the reference
+        for i in (0, len(b) - 1):
+            ex = rj.periodic_orbit(float(b.values[i]), x_guess=np.asarray(b.states[i]), **HARD)
+            assert ex["converged"]
+            assert abs(b.amplitude[i] - ex["amp"]) < 1e-6 * ex["amp"]
+
+
+def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
+    """band_continuation's fallback seeds (the closest returns of a marched trajectory):
+    marched from the scaled linear response at 1.1 (below the hysteresis band: one stable
+    orbit), the trajectory settles (the transient decays like exp(-c t / 2): ~1e-6 after
+    the 240 periods), so its closest returns lie near the orbit: each seed's state is the
+    exact piecewise-linear orbit's state at t = 0 to 1e-3 of the orbit's size, and the
+    corrector from a seed converges to it (1e-6)."""
+    from absorber_jax._continuation import (
+        _axis,
+        _close_returns,
+        _config,
+        _Driver,
+        _first_orbit,
+        _Problem,
+        _run_batched,
+    )
+    from absorber_jax._flow import state_scale
+
+    sysm = hardening()
+    w = 1.1
+    f = aj.Harmonic(amplitude=HARD["F0"], omega=w)
+    method = aj.PseudoArclength()
+    prob = _Problem(system=sysm, forcing=f, s0=state_scale(sysm, f), pscale=np.asarray(w),
+                    cfg=_config(sysm, f, "omega", w, None, 1e-9, 1e-9, 200_000),
+                    parameter="omega", n=1)
+    drv = _Driver(prob, method, (w, w))
+    z0 = np.append(np.asarray(sysm.linear_guess(f)) / np.asarray(prob.s0), 1.0)
+    (seeds,) = _close_returns([drv], [z0])
+    assert len(seeds) == 3
+    ex = rj.periodic_orbit(w, **HARD)
+    assert ex["converged"]
+    x_ex = np.asarray(sysm.to_internal(np.asarray(ex["x"]))) / np.asarray(prob.s0)
+    for z in seeds:
+        assert np.max(np.abs(z[:-1] - x_ex)) < 1e-3 * np.max(np.abs(x_ex))
+    (first,) = _run_batched([_first_orbit(drv, seeds[:1], _axis(prob, "up"))], prob, method)
+    assert first["ok"] and np.max(np.abs(first["z"][:-1] - x_ex)) < 1e-6 * np.max(np.abs(x_ex))
+
+
 def test_multipliers_at_a_branch_point_equal_steady_state():
     """The Floquet multipliers the continuation reads off its final Jacobian equal those of
     steady_state at the same parameter, and both equal the exact piecewise-linear ones
@@ -248,6 +315,8 @@ def test_bad_input_is_named():
     for kw, text in [(dict(bounds=(0.5, 1.5), starts=0), "starts"),
                      (dict(bounds=(0.5, 1.5), starts=[0.2, 1.0]), "starts must lie inside"),
                      (dict(bounds=(0.5, 1.5), starts="many"), "starts"),
+                     (dict(bounds=(0.5, 1.5), fill=-1), "fill"),
+                     (dict(bounds=(0.5, 1.5), fill=1.5), "fill"),
                      (dict(bounds=(1.5, 0.5)), "bounds")]:
         with pytest.raises(ValueError, match=text):
             aj.band_continuation(system, f, "omega", **kw)

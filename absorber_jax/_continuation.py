@@ -611,10 +611,11 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
       the unstable periodic orbits embedded in it); a start where all fail gives two
       branches that ended ``"start_failed"``, and its neighbours follow its cells.
     - ``fill``: passes, after the starts' branches end, that start new ones (seeded the same
-      way) at the centres of the parts of the band none reached (the widest, up to a quarter
-      of the starts' number per pass; each followed within its part): a branch that folds
-      back on both sides of a part leaves it uncovered (the Kelvin–Voigt scene: the branches
-      from 27.8 and 30.9 rad/s turn at folds at 28.35 and 29.25).
+      way) at the centres of the parts of the band none reached (the widest: as many per
+      pass as there are starts, half as many from 4 starts on; each followed within its
+      part): branches that fold back on both sides of a part leave it uncovered (the
+      Kelvin–Voigt scene: the branches from 27.8 and 30.9 rad/s turn at folds at 28.35 and
+      29.25 rad/s).
 
     **Returns** a tuple of :class:`Branch` es, two per start (down, then up), the fill
     passes' after the starts'.

@@ -231,22 +231,24 @@ class _Problem(eqx.Module):
         """(system, forcing) at the scaled parameter ``p``."""
         return _set_value(self.system, self.forcing, self.parameter, p * self.pscale)
 
-    def residual(self, z):
-        x, p = z[:-1], z[-1]
-        sysp, forcp = self.at(p)
+    def _in_flow(self, z):
+        """(system, forcing) at ``z``'s parameter, the flow's state scale there and ``z``'s
+        state in it (flow states ``y`` are ``y * sc / s0`` in the unknowns)."""
+        sysp, forcp = self.at(z[-1])
         sc = state_scale(sysp, forcp)
-        xn, st = period_map(sysp, forcp, x * self.s0 / sc, self.n, self.cfg)
-        return xn * sc / self.s0 - x, st
+        return sysp, forcp, sc, z[:-1] * self.s0 / sc
+
+    def residual(self, z):
+        sysp, forcp, sc, x = self._in_flow(z)
+        xn, st = period_map(sysp, forcp, x, self.n, self.cfg)
+        return xn * sc / self.s0 - z[:-1], st
 
     def samples(self, z, periods):
         """The unknowns' states after each ``n`` forcing periods for ``periods`` times from
         ``z`` (at its parameter), and the integrator's status."""
-        x, p = z[:-1], z[-1]
-        sysp, forcp = self.at(p)
-        sc = state_scale(sysp, forcp)
+        sysp, forcp, sc, x = self._in_flow(z)
         ts = jnp.arange(1, periods + 1) * (self.n * forcp.period)
-        ys, st = _flow((sysp, forcp), x * self.s0 / sc, ts[-1], ts,
-                       cfg=self.cfg.over_periods(self.n * periods))
+        ys, st = _flow((sysp, forcp), x, ts[-1], ts, cfg=self.cfg.over_periods(self.n * periods))
         return ys * sc / self.s0, st
 
 
@@ -677,10 +679,11 @@ def _band_pass(base, method, values, limits, lanes, locate, bar):
     missing = [i for i, f in enumerate(firsts) if not f["ok"]]
     if missing:
         seeds = _close_returns([starters[i] for i in missing], [guesses[i][0] for i in missing])
-        again = _run_batched([_first_orbit(starters[i], g, up) for i, g in zip(missing, seeds)],
-                             base, method, lanes)
-        for i, f in zip(missing, again):
-            firsts[i] = f if f is not None else firsts[i]
+        seeded = [(i, g) for i, g in zip(missing, seeds) if g]
+        again = _run_batched([_first_orbit(starters[i], g, up) for i, g in seeded], base,
+                             method, lanes)
+        for (i, _), f in zip(seeded, again):
+            firsts[i] = f
     # each start's half-branches are bounded by the nearest starts that have an orbit (every
     # cell between two of them is then followed from both ends; a start without one leaves
     # its cells to its neighbours) and by its limits
@@ -777,10 +780,9 @@ def _branch(points, bifs, termination, drv, value0, system):
 
 
 def _first_orbit(drv, guesses, e):
-    """The first orbit that Newton reaches from one of ``guesses`` (tried in turn) on the
-    hyperplane normal to ``e``, or the last failed one (None without guesses); a generator
-    of corrector requests like :func:`_follow`."""
-    point = None
+    """The first orbit that Newton reaches from one of ``guesses`` (tried in turn; at least
+    one) on the hyperplane normal to ``e``, or the last failed one; a generator of corrector
+    requests like :func:`_follow`."""
     for z0 in guesses:
         point = yield (drv, z0, e, True)
         if point["ok"]:
@@ -792,7 +794,13 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     """First guesses from a trajectory marched from each ``z0`` (one vmapped solve for all
     the drivers): the states after which it came closest to returning ``n`` periods later
     (distances scaled by the spread of the samples; the first ``CLOSE_RETURN_SKIP`` samples
-    are transient and left out; one guess per near passage)."""
+    are transient and left out; one guess per near passage; none where the march failed).
+
+    :func:`absorber_jax._marching.march` keeps the single closest period-1 return of a
+    march that never settles, for ``steady_state``'s retry (march from rest, then shoot:
+    what :func:`continuation` falls back on); this one keeps several, of period ``n``,
+    for all the starts of a band in one program, without marching's settling tests and
+    Floquet solve (``steady_state`` there would compile a program of its own per call)."""
     prob = drivers[0].prob
     ys, st = _march_many(prob, jnp.stack([d.prob.s0 for d in drivers]),
                          jnp.asarray(np.stack(z0s)), periods)

@@ -28,6 +28,19 @@ class AbstractSteadyMethod(eqx.Module):
     def retry(self) -> bool:
         """Whether a failed solve is retried by marching then shooting."""
 
+    @property
+    def chains(self) -> bool:
+        """Whether sweeps hand each point the previous point's orbit and period-map
+        Jacobian (:meth:`solve_chained`) instead of solving the points independently
+        (default: False)."""
+        return False
+
+    def solve_chained(self, system, forcing, x0, jacobian, cfg, *, with_floquet=True):
+        """``(SteadyState, jacobian for the next point)`` from the scaled state ``x0`` with
+        the scaled period-map Jacobian ``jacobian`` of a nearby orbit (None: the method's
+        own); only methods whose ``chains`` is True implement it."""
+        raise NotImplementedError(f"{type(self).__name__} does not chain")
+
     def first_pass(self, budget):
         """The method for a sweep's vmapped pass, its iterations capped near ``budget`` so
         that a chunk does not run at the pace of its slowest lane (default: itself)."""

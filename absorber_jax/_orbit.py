@@ -179,6 +179,12 @@ FLOQUET_RTOL_SMALL = 1e-8
 def floquet(system, forcing, x0, n, cfg, n_cap=None):
     """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD); ``n``
     may be traced when ``n_cap`` (its static upper bound) is given."""
+    return jnp.linalg.eigvals(floquet_matrix(system, forcing, x0, n, cfg, n_cap=n_cap))
+
+
+def floquet_matrix(system, forcing, x0, n, cfg, n_cap=None):
+    """The monodromy matrix whose eigenvalues :func:`floquet` reports (scaled state; steps
+    controlled on the tangents, tolerance no tighter than ``FLOQUET_RTOL(_SMALL)``)."""
     # the multipliers are not differentiated: no second derivatives of the flow when a
     # design or jax.grad differentiates the orbit
     system, forcing, x0 = _no_gradient((system, forcing, x0))
@@ -189,7 +195,7 @@ def floquet(system, forcing, x0, n, cfg, n_cap=None):
     # integrations) or FLOQUET_RTOL_SMALL
     floor = FLOQUET_RTOL if system.num_states >= SENSITIVITY_STATES else FLOQUET_RTOL_SMALL
     cfg = dataclasses.replace(cfg, rtol=max(cfg.rtol, floor), atol=max(cfg.atol, floor))
-    return jnp.linalg.eigvals(monodromy(system, forcing, x0, n, cfg, n_cap=n_cap))
+    return monodromy(system, forcing, x0, n, cfg, n_cap=n_cap)
 
 
 def monodromy(system, forcing, x0, n, cfg, n_cap=None):

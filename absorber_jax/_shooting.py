@@ -20,7 +20,7 @@ import optimistix as optx
 from ._checks import check_scalar
 from ._flow import period_map
 from ._method import AbstractSteadyMethod
-from ._orbit import _finish
+from ._orbit import _finish, floquet_matrix, monodromy
 from ._status import Status
 
 
@@ -58,9 +58,8 @@ def _root_solver(name, tol, give_up=None):
     raise ValueError(f"root solver must be 'newton', 'chord' or 'lm', got {name!r}")
 
 
-def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_floquet=True,
-          root="newton", give_up=None):
-    """Shooting from the scaled guess ``x_guess`` for a period-``n`` orbit."""
+def _residual(n, cfg):
+    """The shooting residual ``Φ_{nT}(x) - x`` as a function of ``(x, (system, forcing))``."""
 
     def residual(x, args):
         sys_, forc_ = args
@@ -74,6 +73,13 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
         # (the flow's tangents are finite: see _flow)
         return jnp.where(bad, jnp.zeros_like(x), xn - x)
 
+    return residual
+
+
+def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_floquet=True,
+          root="newton", give_up=None):
+    """Shooting from the scaled guess ``x_guess`` for a period-``n`` orbit."""
+    residual = _residual(n, cfg)
     solver = _root_solver(root, 0.1 * tol, give_up)
     # gradients of the orbit by the implicit function theorem on the shooting residual
     # (forward mode; the minimum-norm SVD solve copes with a floating absorber's null space)
@@ -91,6 +97,63 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
                    with_floquet, n_cap=n, tol=tol)
 
 
+def _broyden(residual, x0, H0, args, tol, steps):
+    """Quasi-Newton iterations ``x <- x - H r(x)`` from the inverse-Jacobian guess ``H0``,
+    ``H`` improved by Broyden's ("good") rank-one update after every step, until a step is
+    within ``tol`` (max-norm); returns the last iterate and the number of steps.  With the
+    exact Jacobian inverse it is Newton; with a neighbour's it converges superlinearly where
+    the plain chord (``H`` kept) converges linearly or not at all (a coarse frequency grid)."""
+
+    def cond(c):
+        x, r, H, k, done = c
+        return (k < steps) & ~done
+
+    def body(c):
+        x, r, H, k, _ = c
+        dx = -H @ r
+        x1 = x + dx
+        r1 = residual(x1, args)
+        dr = r1 - r
+        Hdr = H @ dr
+        den = dx @ Hdr
+        ok = jnp.abs(den) > 1e-300
+        H1 = H + jnp.outer(dx - Hdr, dx @ H) / jnp.where(ok, den, 1.0)
+        H1 = jnp.where(ok & jnp.all(jnp.isfinite(H1)), H1, H)
+        # a failed integration gives a zero residual (see _residual): the step is zero next
+        return x1, r1, H1, k + 1, jnp.max(jnp.abs(dx)) <= tol
+
+    r0 = residual(x0, args)
+    x, _, _, k, _ = jax.lax.while_loop(cond, body, (x0, r0, H0, jnp.asarray(0), jnp.asarray(False)))
+    return x, k
+
+
+def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=40,
+                with_floquet=True):
+    """Shooting from a given Jacobian of the period map (scaled; None: the one at the
+    guess): quasi-Newton steps ``x <- x - H r(x)`` from ``H = (J - I)^+`` (minimum-norm, as
+    the SVD steps of :func:`shoot`), Broyden-updated (:func:`_broyden`), until a step is
+    within ``0.1 tol``.  Returns the :class:`SteadyState` and the Jacobian the next solve
+    along a sweep may reuse: the Floquet monodromy at the orbit when it was computed and
+    the orbit converged, else the Jacobian given.
+
+    A sweep hands each point its neighbour's orbit and monodromy (``Shooting.chains``): the
+    monodromy at an orbit serves its Floquet multipliers *and* the next point's start, one
+    monodromy per point where :func:`shoot` with ``root="chord"`` computes two (at the guess,
+    at the orbit)."""
+    residual = _residual(n, cfg)
+    x_guess = jax.lax.stop_gradient(x_guess)
+    if jacobian is None:
+        jacobian = monodromy(system, forcing, x_guess, n, cfg)
+    H0 = jnp.linalg.pinv(jacobian - jnp.eye(x_guess.shape[0]))
+    x, k = _broyden(residual, x_guess, H0, (system, forcing), 0.1 * tol, steps)
+    mono = floquet_matrix(system, forcing, x, n, cfg) if with_floquet else None
+    res = _finish(system, forcing, x, n, cfg, None, None, k, with_floquet, n_cap=n, tol=tol,
+                  multipliers=None if mono is None else jnp.linalg.eigvals(mono))
+    if mono is None:
+        return res, jacobian
+    return res, jnp.where(res.status == Status.SUCCESS, mono, jacobian)
+
+
 class Shooting(AbstractSteadyMethod):
     """Newton shooting on the period-``n`` map (minimum-norm SVD steps).
 
@@ -102,8 +165,10 @@ class Shooting(AbstractSteadyMethod):
       can reach).
     - ``newton_steps``: Newton iteration budget.
     - ``root``: ``"newton"`` (minimum-norm SVD steps), ``"chord"`` (the first Jacobian
-      reused: one monodromy per solve, for large structural states with close guesses) or
-      ``"lm"`` (Levenberg–Marquardt).
+      reused: one monodromy per solve, for large structural states with close guesses; in
+      a parallel sweep the points run in lanes of neighbours, each from the previous orbit
+      with the previous Floquet monodromy as its Jacobian, Broyden-updated: see
+      :func:`shoot_chord`) or ``"lm"`` (Levenberg–Marquardt).
     - ``retry``: a failed solve is retried by marching from rest and polishing the marched
       orbit by shooting, before it is flagged.
     - ``give_up``: with ``root="newton"``, stop after this many Newton steps if the scaled
@@ -158,6 +223,15 @@ class Shooting(AbstractSteadyMethod):
         if self.newton_steps <= used:
             return None
         return dataclasses.replace(self, newton_steps=self.newton_steps - used)
+
+    @property
+    def chains(self):
+        # the chord reuses a Jacobian: along a sweep, the neighbour's monodromy
+        return self.root == "chord"
+
+    def solve_chained(self, system, forcing, x0, jacobian, cfg, *, with_floquet=True):
+        return shoot_chord(system, forcing, x0, jacobian, self.n, cfg, tol=self.tol,
+                           steps=self.newton_steps, with_floquet=with_floquet)
 
     def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
         return shoot(system, forcing, x0, self.n, cfg, tol=self.tol,

@@ -53,6 +53,44 @@ def test_nlvib_example_03_matches_the_event_exact_reference_both_ways():
     assert labels > 30
 
 
+def test_chained_chord_sweep_lands_on_the_exact_orbits_with_their_multipliers():
+    """A parallel chord sweep solves its points in lanes of neighbours (three here, never
+    across designs), each started from the lane's previous orbit with the previous
+    monodromy as the chord's Jacobian.  NLvib's example 03 with the unilateral spring at
+    gap 1 (contact orbits at 0.6 and 0.65) against the event-exact orbits (state, |Q2|,
+    Floquet multipliers, labels); the same sweep's second design, gap 10, never touches: the
+    linear closed form (state and exp(A T) multipliers)."""
+    from scipy.linalg import expm
+
+    sysm = nlvib03()
+    om = np.array([0.45, 0.5, 0.55, 0.6, 0.65, 0.7])
+    fr = aj.frequency_response(sysm, om, amplitude=0.1, root="chord", chunk_size=4,
+                               params={"contact1.gap": [1.0, 10.0]})
+    assert fr.ok.all(), fr.failures()
+    worst_mu = 0.0
+    for i, w in enumerate(om):
+        r = ref.periodic_orbit(w, x_guess=np.asarray(fr.states[0, i]))
+        assert r["converged"]
+        assert np.max(np.abs(r["x0"] - fr.states[0, i])) < 1e-5
+        q2 = ref.harmonic_amplitudes(r["x0"], w)["Q2"]
+        assert abs(fr.dof("x2", "harmonic")[0, i] - q2) < 1e-6 * q2
+        worst_mu = max(worst_mu, np.max(np.abs(
+            np.sort(np.abs(fr.steady.multipliers[0, i])) - np.sort(np.abs(r["multipliers"])))))
+        assert bool(fr.stable[0, i]) == (r["mu_max"] < 1)
+        # gap 10 (the linear peak of q1 is 6.3): linear (the state to shooting's
+        # tolerance, 1e-6 on the scaled residual, amplified by 1 / (1 - |mu|) ~ 15)
+        x_lin = ref.linear_frf(w)[1]
+        assert np.max(np.abs(fr.states[1, i] - x_lin)) < 1e-5 * np.max(np.abs(x_lin))
+        mu_lin = np.linalg.eigvals(expm(ref._AB(ref.OPEN)[0] * 2 * np.pi / w))
+        worst_mu = max(worst_mu, np.max(np.abs(
+            np.sort(np.abs(fr.steady.multipliers[1, i])) - np.sort(np.abs(mu_lin)))))
+        assert fr.stable[1, i]
+    assert np.any(fr.impacts[0] > 0) and not np.any(fr.impacts[1] > 0)
+    print(f"chained chord: multipliers within {worst_mu:.1e} of the exact ones; chord steps "
+          f"{fr.iterations.tolist()}")
+    assert worst_mu < 1e-5
+
+
 @pytest.mark.slow  # CI time; the structure layer is checked on every element by the energy test
 def test_two_mass_systems_are_special_cases():
     """ImpactAbsorber / FrictionAbsorber = a one-DOF structure + ImpactDamper /

@@ -322,7 +322,10 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
     - ``chunk_size``: points per compiled call (padded, so one compilation serves all
       chunks); ``progress``: show a tqdm bar over chunks.
     - ``shard``: spread each chunk over all local devices with ``jax.sharding`` (when there
-      are several).
+      are several).  Known defect (2026-11-25): the 44-state building of
+      ``scripts/benchmark_structure.py`` hangs when sharded over two CPU devices
+      (``XLA_FLAGS=--xla_force_host_platform_device_count=2``; the small systems of the
+      tests do not); pass ``shard=False`` there.
     - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
       ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
       the lanes still iterating resume from their last iterate a few at a time, and

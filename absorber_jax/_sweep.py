@@ -225,24 +225,29 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
     return jax.vmap(lane)(omegas, pvals)
 
 
-def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, progress):
-    """The points ``(W, PV)`` solved independently, ``size`` per compiled call (padded);
-    the flat results."""
+def _by_chunks(rows, size, progress, solve):
+    """``solve(padded rows)`` on ``size`` rows of ``rows`` (point indices, one row per lane)
+    at a time, the last chunk padded by repeating its last row (one compilation serves
+    all); the results of the real rows, concatenated."""
     from tqdm.auto import tqdm
 
     out = []
-    for start in tqdm(range(0, W.shape[0], size), desc="sweep", disable=not progress):
-        w = W[start:start + size]
-        pv = PV[start:start + size]
-        pad = size - w.shape[0]
+    for start in tqdm(range(0, rows.shape[0], size), desc="sweep", disable=not progress):
+        idx = rows[start:start + size]
+        pad = size - idx.shape[0]
         if pad:
-            w = np.concatenate([w, np.repeat(w[-1:], pad)])
-            pv = np.concatenate([pv, np.repeat(pv[-1:], pad, axis=0)])
-        w, pv = _place(jnp.asarray(w), ndev), _place(jnp.asarray(pv), ndev)
-        res = _parallel_chunk(system, w, amp, pv, cfg, first, names, floquet)
-        keep = size - pad
-        out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:k], res))
+            idx = np.concatenate([idx, np.repeat(idx[-1:], pad, axis=0)])
+        res = solve(idx)
+        out.append(jax.tree_util.tree_map(lambda a, k=size - pad: np.asarray(a)[:k], res))
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
+
+
+def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, progress):
+    """The points ``(W, PV)`` solved independently, ``size`` per compiled call; the flat
+    results."""
+    return _by_chunks(np.arange(W.shape[0]), size, progress, lambda p: _parallel_chunk(
+        system, _place(jnp.asarray(W[p]), ndev), amp, _place(jnp.asarray(PV[p]), ndev), cfg,
+        first, names, floquet))
 
 
 def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress):
@@ -251,29 +256,17 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
     but a lane's first starts from its neighbour's orbit with its neighbour's monodromy as
     the chord's Jacobian; ``chunk_size`` lanes per compiled call.  Returns the flat
     results (one per point)."""
-    from tqdm.auto import tqdm
-
     total = W.shape[0]
     k = int(min(MAX_CHAIN, max(1, math.ceil(total / chunk_size))))
     # lanes never cross from one design to the next: split at design boundaries
     starts = np.flatnonzero(np.r_[True, np.any(PV[1:] != PV[:-1], axis=1) | (W[1:] <= W[:-1])])
     ends = np.r_[starts[1:], total]
-    lanes = [np.minimum(np.arange(a, e, k)[:, None] + np.arange(k)[None, :], e - 1)
-             for a, e in zip(starts, ends)]
-    lanes = np.concatenate(lanes)                                   # (L, k) point indices
-    size = min(chunk_size, lanes.shape[0])
-    size = int(math.ceil(size / ndev) * ndev)
-    out = []
-    for start in tqdm(range(0, lanes.shape[0], size), desc="sweep", disable=not progress):
-        idx = lanes[start:start + size]
-        pad = size - idx.shape[0]
-        if pad:
-            idx = np.concatenate([idx, np.repeat(idx[-1:], pad, axis=0)])
-        w, pv = _place(jnp.asarray(W[idx]), ndev), _place(jnp.asarray(PV[idx[:, 0]]), ndev)
-        res = _chained_chunk(system, w, amp, pv, cfg, first, names, floquet)
-        keep = size - pad
-        out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:k], res))
-    res = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
+    lanes = np.concatenate([np.minimum(np.arange(a, e, k)[:, None] + np.arange(k)[None, :],
+                                       e - 1) for a, e in zip(starts, ends)])  # (L, k) points
+    size = int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
+    res = _by_chunks(lanes, size, progress, lambda p: _chained_chunk(
+        system, _place(jnp.asarray(W[p]), ndev), amp, _place(jnp.asarray(PV[p[:, 0]]), ndev),
+        cfg, first, names, floquet))
     # back to one result per point (a lane padded by repeating its last point wrote it twice)
     flat = lanes.reshape(-1)
     where = np.empty(total, dtype=int)

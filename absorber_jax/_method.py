@@ -35,10 +35,15 @@ class AbstractSteadyMethod(eqx.Module):
         (default: False)."""
         return False
 
+    def chain_jacobian(self, system, forcing, x0, cfg):
+        """The scaled period-map Jacobian at the scaled state ``x0`` that a chain of solves
+        starts from; only methods whose ``chains`` is True implement it."""
+        raise NotImplementedError(f"{type(self).__name__} does not chain")
+
     def solve_chained(self, system, forcing, x0, jacobian, cfg, *, with_floquet=True):
         """``(SteadyState, jacobian for the next point)`` from the scaled state ``x0`` with
-        the scaled period-map Jacobian ``jacobian`` of a nearby orbit (None: the method's
-        own); only methods whose ``chains`` is True implement it."""
+        the scaled period-map Jacobian ``jacobian`` of a nearby orbit; only methods whose
+        ``chains`` is True implement it."""
         raise NotImplementedError(f"{type(self).__name__} does not chain")
 
     def first_pass(self, budget):

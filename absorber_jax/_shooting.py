@@ -129,12 +129,12 @@ def _broyden(residual, x0, H0, args, tol, steps):
 
 def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=40,
                 with_floquet=True):
-    """Shooting from a given Jacobian of the period map (scaled; None: the one at the
-    guess): quasi-Newton steps ``x <- x - H r(x)`` from ``H = (J - I)^+`` (minimum-norm, as
-    the SVD steps of :func:`shoot`), Broyden-updated (:func:`_broyden`), until a step is
-    within ``0.1 tol``.  Returns the :class:`SteadyState` and the Jacobian the next solve
-    along a sweep may reuse: the Floquet monodromy at the orbit when it was computed and
-    the orbit converged, else the Jacobian given.
+    """Shooting from a given Jacobian of the period map (scaled): quasi-Newton steps
+    ``x <- x - H r(x)`` from ``H = (J - I)^+`` (minimum-norm, as the SVD steps of
+    :func:`shoot`), Broyden-updated (:func:`_broyden`), until a step is within ``0.1 tol``.
+    Returns the :class:`SteadyState` and the Jacobian the next solve along a sweep may
+    reuse: the Floquet monodromy at the orbit when it was computed and the orbit converged,
+    else the Jacobian given.
 
     A sweep hands each point its neighbour's orbit and monodromy (``Shooting.chains``): the
     monodromy at an orbit serves its Floquet multipliers *and* the next point's start, one
@@ -142,8 +142,6 @@ def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=4
     at the orbit)."""
     residual = _residual(n, cfg)
     x_guess = jax.lax.stop_gradient(x_guess)
-    if jacobian is None:
-        jacobian = monodromy(system, forcing, x_guess, n, cfg)
     H0 = jnp.linalg.pinv(jacobian - jnp.eye(x_guess.shape[0]))
     x, k = _broyden(residual, x_guess, H0, (system, forcing), 0.1 * tol, steps)
     mono = floquet_matrix(system, forcing, x, n, cfg) if with_floquet else None
@@ -228,6 +226,9 @@ class Shooting(AbstractSteadyMethod):
     def chains(self):
         # the chord reuses a Jacobian: along a sweep, the neighbour's monodromy
         return self.root == "chord"
+
+    def chain_jacobian(self, system, forcing, x0, cfg):
+        return monodromy(system, forcing, x0, self.n, cfg)
 
     def solve_chained(self, system, forcing, x0, jacobian, cfg, *, with_floquet=True):
         return shoot_chord(system, forcing, x0, jacobian, self.n, cfg, tol=self.tol,

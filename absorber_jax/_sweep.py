@@ -189,38 +189,28 @@ MAX_CHAIN = 16
 def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
     """Lanes (vmapped) of consecutive frequencies ``omegas[lane]``: each point solved by
     ``method.solve_chained`` from the lane's last converged orbit and the Jacobian it left
-    (the first point from the method's own start and Jacobian)."""
+    (the first point from the method's own start and ``method.chain_jacobian`` there)."""
 
     def lane(ws, pv):
         sysp = _with(system, names, pv)
-
-        def solve(w, x_int, jac):
-            f = _forcing(amplitude, w)
-            s = state_scale(sysp, f)
-            res, jac = method.solve_chained(sysp, f, x_int / s, jac, cfg,
-                                            with_floquet=with_floquet)
-            return res, jac, s
-
         f0 = _forcing(amplitude, ws[0])
+        s0 = state_scale(sysp, f0)
         x0 = method.initial_state(sysp, f0)
-        res0, jac0, s0 = solve(ws[0], x0, None)
-
-        def keep(res, new, old):
-            ok = res.status == Status.SUCCESS
-            return jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, old)
 
         def step(carry, w):
             x_prev, jac_prev, s_prev = carry
-            s = state_scale(sysp, _forcing(amplitude, w))
+            f = _forcing(amplitude, w)
+            s = state_scale(sysp, f)
             # the neighbour's Jacobian in this frequency's scaling (velocities scale with ω)
             jac = (s_prev / s)[:, None] * jac_prev * (s / s_prev)[None, :]
-            res, jac, s = solve(w, x_prev, jac)
-            x_int = sysp.to_internal(res.state)
-            return keep(res, (x_int, jac, s), (x_prev, jac_prev, s_prev)), res
+            res, jac = method.solve_chained(sysp, f, x_prev / s, jac, cfg,
+                                            with_floquet=with_floquet)
+            ok = res.status == Status.SUCCESS
+            new = (sysp.to_internal(res.state), jac, s)
+            return jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, carry), res
 
-        carry = keep(res0, (sysp.to_internal(res0.state), jac0, s0), (x0, jac0, s0))
-        _, rest = jax.lax.scan(step, carry, ws[1:])
-        return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), res0, rest)
+        carry = (x0, method.chain_jacobian(sysp, f0, x0 / s0, cfg), s0)
+        return jax.lax.scan(step, carry, ws)[1]
 
     return jax.vmap(lane)(omegas, pvals)
 
@@ -250,19 +240,19 @@ def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, 
         first, names, floquet))
 
 
-def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress):
-    """The points ``(W, PV)`` (design-major, each design's frequencies in order) solved in
-    lanes of up to ``MAX_CHAIN`` consecutive frequencies of one design, so that every point
-    but a lane's first starts from its neighbour's orbit with its neighbour's monodromy as
-    the chord's Jacobian; ``chunk_size`` lanes per compiled call.  Returns the flat
-    results (one per point)."""
+def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress,
+                   per_design):
+    """The points ``(W, PV)`` (design-major: ``per_design`` frequencies of each design, in
+    order) solved in lanes of up to ``MAX_CHAIN`` consecutive frequencies of one design, so
+    that every point but a lane's first starts from its neighbour's orbit with its
+    neighbour's monodromy as the chord's Jacobian; ``chunk_size`` lanes per compiled call.
+    Returns the flat results (one per point)."""
     total = W.shape[0]
     k = int(min(MAX_CHAIN, max(1, math.ceil(total / chunk_size))))
-    # lanes never cross from one design to the next: split at design boundaries
-    starts = np.flatnonzero(np.r_[True, np.any(PV[1:] != PV[:-1], axis=1) | (W[1:] <= W[:-1])])
-    ends = np.r_[starts[1:], total]
-    lanes = np.concatenate([np.minimum(np.arange(a, e, k)[:, None] + np.arange(k)[None, :],
-                                       e - 1) for a, e in zip(starts, ends)])  # (L, k) points
+    # lanes never cross from one design to the next
+    lanes = np.concatenate([np.minimum(np.arange(a, a + per_design, k)[:, None]
+                                       + np.arange(k)[None, :], a + per_design - 1)
+                            for a in range(0, total, per_design)])      # (L, k) points
     size = int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
     res = _by_chunks(lanes, size, progress, lambda p: _chained_chunk(
         system, _place(jnp.asarray(W[p]), ndev), amp, _place(jnp.asarray(PV[p[:, 0]]), ndev),
@@ -391,7 +381,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
                        if size > SMALL_CHUNK else (method, None))
         if method.chains:
             res = _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size,
-                                 ndev, progress)
+                                 ndev, progress, len(order))
         else:
             res = _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev,
                                   progress)

@@ -215,10 +215,12 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
     return jax.vmap(lane)(omegas, pvals)
 
 
-def _by_chunks(rows, size, progress, solve):
-    """``solve(padded rows)`` on ``size`` rows of ``rows`` (point indices, one row per lane)
-    at a time, the last chunk padded by repeating its last row (one compilation serves
-    all); the results of the real rows, concatenated."""
+def _by_chunks(rows, size, progress, solve, ndev=1):
+    """``solve(padded rows, device)`` on ``size`` rows of ``rows`` (point indices, one row per
+    lane) at a time, the last chunk padded by repeating its last row (one compilation serves
+    all); the results of the real rows, concatenated.  With ``ndev`` devices each chunk is
+    split into ``ndev`` equal parts, one per device, solved concurrently (see
+    :func:`_on_devices`)."""
     from tqdm.auto import tqdm
 
     out = []
@@ -227,17 +229,41 @@ def _by_chunks(rows, size, progress, solve):
         pad = size - idx.shape[0]
         if pad:
             idx = np.concatenate([idx, np.repeat(idx[-1:], pad, axis=0)])
-        res = solve(idx)
+        res = _on_devices(solve, idx, ndev)
         out.append(jax.tree_util.tree_map(lambda a, k=size - pad: np.asarray(a)[:k], res))
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
+
+
+def _on_devices(solve, idx, ndev):
+    """``solve(part, device)`` on ``ndev`` equal parts of ``idx`` (``len(idx)`` a multiple of
+    ``ndev``), each on its own local device, concurrently (one thread per device, so that
+    the first call compiles the programs side by side too); the results concatenated.
+
+    Each device runs its own copy of the single-device program: no collectives.  (A
+    chunk sharded over the devices with ``jax.sharding``, as before 2026-11-26, made one
+    SPMD program whose vmapped while loops end at different steps on different devices:
+    the 44-state building of ``scripts/benchmark_structure.py`` hung there on two CPU
+    devices.)"""
+    if ndev <= 1:
+        return solve(idx, None)
+    from concurrent.futures import ThreadPoolExecutor
+
+    devices = jax.local_devices()[:ndev]
+    parts = np.split(idx, ndev)
+
+    def run(k):
+        return jax.block_until_ready(solve(parts[k], devices[k]))
+
+    with ThreadPoolExecutor(ndev) as pool:
+        res = list(pool.map(run, range(ndev)))
+    return jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a]), *res)
 
 
 def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, progress):
     """The points ``(W, PV)`` solved independently, ``size`` per compiled call; the flat
     results."""
-    return _by_chunks(np.arange(W.shape[0]), size, progress, lambda p: _parallel_chunk(
-        system, _place(jnp.asarray(W[p]), ndev), amp, _place(jnp.asarray(PV[p]), ndev), cfg,
-        first, names, floquet))
+    return _by_chunks(np.arange(W.shape[0]), size, progress, lambda p, d: _parallel_chunk(
+        system, _put(W[p], d), amp, _put(PV[p], d), cfg, first, names, floquet), ndev)
 
 
 def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress,
@@ -254,9 +280,8 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
                                        + np.arange(k)[None, :], a + per_design - 1)
                             for a in range(0, total, per_design)])      # (L, k) points
     size = int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
-    res = _by_chunks(lanes, size, progress, lambda p: _chained_chunk(
-        system, _place(jnp.asarray(W[p]), ndev), amp, _place(jnp.asarray(PV[p[:, 0]]), ndev),
-        cfg, first, names, floquet))
+    res = _by_chunks(lanes, size, progress, lambda p, d: _chained_chunk(
+        system, _put(W[p], d), amp, _put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev)
     # back to one result per point (a lane padded by repeating its last point wrote it twice)
     flat = lanes.reshape(-1)
     where = np.empty(total, dtype=int)
@@ -304,11 +329,9 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
       each point seeded from its neighbour) or ``"both"`` (returns ``(up, down)``).
     - ``chunk_size``: points per compiled call (padded, so one compilation serves all
       chunks); ``progress``: show a tqdm bar over chunks.
-    - ``shard``: spread each chunk over all local devices with ``jax.sharding`` (when there
-      are several).  Known defect (2026-11-25): the 44-state building of
-      ``scripts/benchmark_structure.py`` hangs when sharded over two CPU devices
-      (``XLA_FLAGS=--xla_force_host_platform_device_count=2``; the small systems of the
-      tests do not); pass ``shard=False`` there.
+    - ``shard``: split each chunk (``direction="parallel"``) over all local devices (when
+      there are several), an equal part per device, solved concurrently, each device
+      running its own copy of the program (compiled once per device, side by side).
     - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
       ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
       the lanes still iterating resume from their last iterate a few at a time, and
@@ -452,11 +475,8 @@ def _check_params(system, params):
     return names, np.stack(cols, axis=1)
 
 
-def _place(x, ndev):
-    """Shard the leading axis over the local devices (no-op on one device)."""
-    if ndev <= 1:
-        return x
-    from jax.sharding import Mesh, NamedSharding, PartitionSpec
-
-    mesh = Mesh(np.array(jax.local_devices()), ("points",))
-    return jax.device_put(x, NamedSharding(mesh, PartitionSpec("points")))
+def _put(x, device):
+    """``x`` as a float array committed to ``device`` (None: the default device,
+    uncommitted)."""
+    x = jnp.asarray(x, dtype=float)
+    return x if device is None else jax.device_put(x, device)

@@ -208,16 +208,20 @@ def test_sweep_runs_sharded_over_two_cpu_devices():
         system, _ = aj.presets.impact("kelvin_voigt", gap=0.0)
         om = np.linspace(30.0, 70.0, 6)
         frf = aj.frequency_response(system, om, amplitude=2.0, chunk_size=4)
+        # the chained chord sweep too: 3 lanes of 2 neighbours, padded to 4, 2 per device
+        chord = aj.frequency_response(system, om, amplitude=2.0, chunk_size=3, root="chord")
         import json
-        print(json.dumps([frf.amplitude.tolist(), frf.status.tolist()]))
+        print(json.dumps([frf.amplitude.tolist(), frf.status.tolist(),
+                          chord.amplitude.tolist(), chord.status.tolist()]))
     """)
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
                JAX_PLATFORMS="cpu")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
-    amps, status = json.loads(out.stdout.strip().splitlines()[-1])
+    amps, status, chord_amps, chord_status = json.loads(out.stdout.strip().splitlines()[-1])
     om = np.linspace(30.0, 70.0, 6)
-    np.testing.assert_allclose(amps, closed_form_x1(1.0, 1e3, 0.1, 0.4, 400.0, 20.0, 2.0, om),
-                               rtol=1e-6)
-    assert status == [0] * 6
+    exact = closed_form_x1(1.0, 1e3, 0.1, 0.4, 400.0, 20.0, 2.0, om)
+    np.testing.assert_allclose(amps, exact, rtol=1e-6)
+    np.testing.assert_allclose(chord_amps, exact, rtol=1e-6)
+    assert status == [0] * 6 and chord_status == [0] * 6

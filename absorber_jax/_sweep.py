@@ -236,26 +236,21 @@ def _by_chunks(rows, size, progress, solve, ndev=1):
 
 def _on_devices(solve, idx, ndev):
     """``solve(part, device)`` on ``ndev`` equal parts of ``idx`` (``len(idx)`` a multiple of
-    ``ndev``), each on its own local device, concurrently (one thread per device, so that
-    the first call compiles the programs side by side too); the results concatenated.
+    ``ndev``), each on its own local device; the results concatenated.
 
-    Each device runs its own copy of the single-device program: no collectives.  (A
-    chunk sharded over the devices with ``jax.sharding``, as before 2026-11-26, made one
-    SPMD program whose vmapped while loops end at different steps on different devices:
-    the 44-state building of ``scripts/benchmark_structure.py`` hung there on two CPU
-    devices.)"""
+    Each device runs its own copy of the single-device program (no collectives), the parts
+    dispatched one after another from this thread: accelerators run them side by side; on
+    CPU devices ``eqx.filter_jit`` waits for each call, so the parts run in turn (no gain
+    there: the 256-frequency sweep below took 20.1 s on two CPU devices, 20.4 s on one).
+    Two things that hung, on the 44-state building of ``scripts/benchmark_structure.py``
+    over two CPU devices (256 frequencies): the chunk
+    sharded with ``jax.sharding`` as one SPMD program (before 2026-11-26), and the parts
+    dispatched from one thread per device; both run two executions at once on XLA's CPU
+    thread pool, and both stopped with the cores idle."""
     if ndev <= 1:
         return solve(idx, None)
-    from concurrent.futures import ThreadPoolExecutor
-
     devices = jax.local_devices()[:ndev]
-    parts = np.split(idx, ndev)
-
-    def run(k):
-        return jax.block_until_ready(solve(parts[k], devices[k]))
-
-    with ThreadPoolExecutor(ndev) as pool:
-        res = list(pool.map(run, range(ndev)))
+    res = [solve(part, d) for part, d in zip(np.split(idx, ndev), devices)]
     return jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a]), *res)
 
 
@@ -330,8 +325,8 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
     - ``chunk_size``: points per compiled call (padded, so one compilation serves all
       chunks); ``progress``: show a tqdm bar over chunks.
     - ``shard``: split each chunk (``direction="parallel"``) over all local devices (when
-      there are several), an equal part per device, solved concurrently, each device
-      running its own copy of the program (compiled once per device, side by side).
+      there are several), an equal part per device, each device running its own copy of
+      the program (compiled once per device); accelerators run the parts side by side.
     - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
       ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
       the lanes still iterating resume from their last iterate a few at a time, and

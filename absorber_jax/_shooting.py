@@ -108,19 +108,26 @@ def _broyden(residual, x0, H0, args, tol, steps):
         x, r, H, k, done = c
         return (k < steps) & ~done
 
-    def body(c):
-        x, r, H, k, _ = c
-        dx = -H @ r
-        x1 = x + dx
+    def update(x1, dx, r, H):
         r1 = residual(x1, args)
         dr = r1 - r
         Hdr = H @ dr
         den = dx @ Hdr
         ok = jnp.abs(den) > 1e-300
         H1 = H + jnp.outer(dx - Hdr, dx @ H) / jnp.where(ok, den, 1.0)
-        H1 = jnp.where(ok & jnp.all(jnp.isfinite(H1)), H1, H)
+        return r1, jnp.where(ok & jnp.all(jnp.isfinite(H1)), H1, H)
+
+    def body(c):
+        x, r, H, k, _ = c
+        dx = -H @ r
+        x1 = x + dx
+        done = jnp.max(jnp.abs(dx)) <= tol
+        # the last step (within tol) needs no residual: the orbit's own integration follows
+        # (run lane by lane, this saves one period integration per point; vmapped, cond
+        # runs both branches)
         # a failed integration gives a zero residual (see _residual): the step is zero next
-        return x1, r1, H1, k + 1, jnp.max(jnp.abs(dx)) <= tol
+        r1, H1 = jax.lax.cond(done, lambda: (r, H), lambda: update(x1, dx, r, H))
+        return x1, r1, H1, k + 1, done
 
     r0 = residual(x0, args)
     x, _, _, k, _ = jax.lax.while_loop(cond, body, (x0, r0, H0, jnp.asarray(0), jnp.asarray(False)))

@@ -14,7 +14,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_time_grid, require_x64
-from ._flow import state_scale
+from ._flow import SENSITIVITY_STATES, lane_by_lane, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, read_through
 from ._params import replace_params, resolve
@@ -189,9 +189,10 @@ MAX_CHAIN = 16
 def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
     """Lanes (vmapped) of consecutive frequencies ``omegas[lane]``: each point solved by
     ``method.solve_chained`` from the lane's last converged orbit and the Jacobian it left
-    (the first point from the method's own start and ``method.chain_jacobian`` there)."""
+    (the first point from the method's own start and ``method.chain_jacobian`` there).
+    Large states' lanes run one at a time (:func:`_one_lane_at_a_time`)."""
 
-    def lane(ws, pv):
+    def lane(ws, pv, system, amplitude):
         sysp = _with(system, names, pv)
         f0 = _forcing(amplitude, ws[0])
         s0 = state_scale(sysp, f0)
@@ -212,7 +213,22 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
         carry = (x0, method.chain_jacobian(sysp, f0, x0 / s0, cfg), s0)
         return jax.lax.scan(step, carry, ws)[1]
 
-    return jax.vmap(lane)(omegas, pvals)
+    if _one_lane_at_a_time(system):
+        lane = lane_by_lane(lane)
+    return jax.vmap(lane, in_axes=(0, 0, None, None))(omegas, pvals, system, amplitude)
+
+
+def _one_lane_at_a_time(system):
+    """Whether a chained sweep runs its lanes one at a time (``lane_by_lane``) rather than
+    vmapped in lockstep: for large states (>= ``SENSITIVITY_STATES``), whose Floquet
+    monodromies run lane by lane anyway.  In lockstep every point of a chunk of lanes waits
+    for the lane needing the most quasi-Newton steps (the 44-state building of
+    ``scripts/benchmark_structure.py``: median 7, but up to the first pass's 20 in almost
+    every chunk); one at a time, a period integration costs 4 ms instead of 2.3 ms per
+    lane but each lane takes only its own steps, and lanes can be longer (``MAX_CHAIN``
+    points: fewer first Jacobians).  Measured there, 256 frequencies: 20.4 s vmapped
+    (lanes of 4), 17.2 s one at a time (lanes of 16)."""
+    return system.num_states >= SENSITIVITY_STATES
 
 
 def _by_chunks(rows, size, progress, solve, ndev=1):
@@ -269,7 +285,8 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
     neighbour's monodromy as the chord's Jacobian; ``chunk_size`` lanes per compiled call.
     Returns the flat results (one per point)."""
     total = W.shape[0]
-    k = int(min(MAX_CHAIN, max(1, math.ceil(total / chunk_size))))
+    k = int(MAX_CHAIN if _one_lane_at_a_time(system)
+            else min(MAX_CHAIN, max(1, math.ceil(total / chunk_size))))
     # lanes never cross from one design to the next
     lanes = np.concatenate([np.minimum(np.arange(a, a + per_design, k)[:, None]
                                        + np.arange(k)[None, :], a + per_design - 1)

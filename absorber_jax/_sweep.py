@@ -183,6 +183,9 @@ def _parallel_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_f
 
 # points one lane of a chained sweep solves in a row (see _chained_sweep)
 MAX_CHAIN = 16
+# ... and when its lanes run one at a time (see _one_lane_at_a_time): one lane per device and
+# compiled call
+ALONE_CHAIN = 64
 
 
 @eqx.filter_jit
@@ -225,9 +228,10 @@ def _one_lane_at_a_time(system):
     for the lane needing the most quasi-Newton steps (the 44-state building of
     ``scripts/benchmark_structure.py``: median 7, but up to the first pass's 20 in almost
     every chunk); one at a time, a period integration costs 4 ms instead of 2.3 ms per
-    lane but each lane takes only its own steps, and lanes can be longer (``MAX_CHAIN``
-    points: fewer first Jacobians).  Measured there, 256 frequencies: 20.4 s vmapped
-    (lanes of 4), 17.2 s one at a time (lanes of 16)."""
+    lane but each lane takes only its own steps, and lanes can be longer (``ALONE_CHAIN``
+    points, one lane per device and compiled call: fewer first points, each started from
+    the linear guess with up to ~20 steps).  Measured there, 256 frequencies: 20.4 s
+    vmapped (lanes of 4), 17.2 s one at a time in lanes of 16, 15.5 s in lanes of 64."""
     return system.num_states >= SENSITIVITY_STATES
 
 
@@ -282,16 +286,18 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
     """The points ``(W, PV)`` (design-major: ``per_design`` frequencies of each design, in
     order) solved in lanes of up to ``MAX_CHAIN`` consecutive frequencies of one design, so
     that every point but a lane's first starts from its neighbour's orbit with its
-    neighbour's monodromy as the chord's Jacobian; ``chunk_size`` lanes per compiled call.
+    neighbour's monodromy as the chord's Jacobian; ``chunk_size`` lanes per compiled call
+    (large states: lanes of ``ALONE_CHAIN``, one per device and call).
     Returns the flat results (one per point)."""
     total = W.shape[0]
-    k = int(MAX_CHAIN if _one_lane_at_a_time(system)
+    alone = _one_lane_at_a_time(system)
+    k = int(min(ALONE_CHAIN, per_design) if alone
             else min(MAX_CHAIN, max(1, math.ceil(total / chunk_size))))
     # lanes never cross from one design to the next
     lanes = np.concatenate([np.minimum(np.arange(a, a + per_design, k)[:, None]
                                        + np.arange(k)[None, :], a + per_design - 1)
                             for a in range(0, total, per_design)])      # (L, k) points
-    size = int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
+    size = ndev if alone else int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
     res = _by_chunks(lanes, size, progress, lambda p, d: _chained_chunk(
         system, _put(W[p], d), amp, _put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev)
     # back to one result per point (a lane padded by repeating its last point wrote it twice)
@@ -350,10 +356,11 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
       (``retry``, the default) the points that still failed are re-solved by marching then
       shooting (:func:`march_then_shoot`) before they are flagged.
     - With ``root="chord"`` the parallel pass solves lanes of up to ``MAX_CHAIN``
-      neighbouring frequencies (``ceil(points / chunk_size)`` of them), each point from the
-      previous orbit of its lane with the previous Floquet monodromy as its Jacobian: one
-      monodromy per point (measured on the 44-state building of
-      ``scripts/benchmark_structure.py``: 62 → 34 s for 256 frequencies).
+      neighbouring frequencies (``ceil(points / chunk_size)`` of them; large states:
+      ``ALONE_CHAIN``, one lane at a time), each point from the previous orbit of its lane
+      with the previous Floquet monodromy as its Jacobian: one monodromy per point
+      (measured on the 44-state building of ``scripts/benchmark_structure.py``: 62 → 34 s
+      for 256 frequencies; 15.5 s with large states' lanes one at a time).
     - the remaining keywords as in :func:`steady_state`.
 
     ```python

@@ -187,9 +187,9 @@ def test_building_with_three_dampers_steady_states_equal_the_closed_form_recepta
             assert max(d.min(axis=0).max(), d.min(axis=1).max()) < 1e-5, (w, d.min(axis=0))
         if as_elements:
             # the chained chord sweep, whose lanes of a large state run one at a time (each
-            # point from its neighbour's orbit and monodromy; 20 points: 2 lanes of 16, the
-            # second padded): the same closed forms
-            om2 = np.linspace(10.0, 80.0, 20)
+            # point from its neighbour's orbit and monodromy; 70 points: 2 lanes of 64, the
+            # second padded, one compiled call each): the same closed forms
+            om2 = np.linspace(10.0, 80.0, 70)
             H2 = np.asarray(bare.with_tuned_mass_dampers(TMDS).receptance(om2))[:, 2, :3]
             ch = aj.frequency_response(sysm, om2, amplitude=1.0, root="chord")
             assert ch.ok.all() and ch.stable.all()

@@ -239,8 +239,7 @@ def _by_chunks(rows, size, progress, solve, ndev=1):
     """``solve(padded rows, device)`` on ``size`` rows of ``rows`` (point indices, one row per
     lane) at a time, the last chunk padded by repeating its last row (one compilation serves
     all); the results of the real rows, concatenated.  With ``ndev`` devices each chunk is
-    split into ``ndev`` equal parts, one per device, solved concurrently (see
-    :func:`_on_devices`)."""
+    split into ``ndev`` equal parts, one per device (see :func:`_on_devices`)."""
     from tqdm.auto import tqdm
 
     out = []
@@ -263,10 +262,10 @@ def _on_devices(solve, idx, ndev):
     CPU devices ``eqx.filter_jit`` waits for each call, so the parts run in turn (no gain
     there: the 256-frequency sweep below took 20.1 s on two CPU devices, 20.4 s on one).
     Two things that hung, on the 44-state building of ``scripts/benchmark_structure.py``
-    over two CPU devices (256 frequencies): the chunk
-    sharded with ``jax.sharding`` as one SPMD program (before 2026-11-26), and the parts
-    dispatched from one thread per device; both run two executions at once on XLA's CPU
-    thread pool, and both stopped with the cores idle."""
+    over two CPU devices (256 frequencies): the chunk sharded with ``jax.sharding`` as one
+    SPMD program (as until 2026-11-25), and the parts dispatched from one thread per
+    device; both run two executions at once on XLA's CPU thread pool, and both stopped with
+    the cores idle."""
     if ndev <= 1:
         return solve(idx, None)
     devices = jax.local_devices()[:ndev]

@@ -114,12 +114,16 @@ def _flow(dyn, x0, t1, ts, *, cfg):
 def _flat_inputs(primals, tangents):
     """The inexact leaves of ``primals`` that carry a tangent, as one vector; a function that
     puts such a vector back; and the tangents as one vector."""
-    is_none = lambda a: a is None  # noqa: E731
-    t_leaves = jax.tree_util.tree_leaves(tangents, is_leaf=is_none)
-    active = [i for i, t in enumerate(t_leaves) if t is not None]
+    active, t_vec = _active_tangents(tangents)
     vec, rebuild = _flat_active(primals, active)
-    t_vec = jnp.concatenate([jnp.ravel(t_leaves[i]) for i in active])
     return vec, rebuild, t_vec
+
+
+def _active_tangents(tangents):
+    """The indices of the leaves that carry a tangent, and those tangents as one vector."""
+    t_leaves = jax.tree_util.tree_leaves(tangents, is_leaf=lambda a: a is None)
+    active = [i for i, t in enumerate(t_leaves) if t is not None]
+    return active, jnp.concatenate([jnp.ravel(t_leaves[i]) for i in active])
 
 
 def _flat_active(primals, active):
@@ -157,23 +161,23 @@ def _flow_jvp(primals, tangents, *, cfg):
     hybrid = dyn[0].hybrid
     k = 4 if hybrid else 2
     if any(t is not None for t in jax.tree_util.tree_leaves(tangents[:k], is_leaf=is_none)):
-        vec, rebuild, t_vec = _flat_inputs(primals[:k], tangents[:k])
+        active, t_vec = _active_tangents(tangents[:k])
         if _by_sensitivities(dyn, cfg):
             dyn_active = any(t is not None for t in
                              jax.tree_util.tree_leaves(tangents[0], is_leaf=is_none))
-            active = [i for i, t in enumerate(jax.tree_util.tree_leaves(
-                tangents[:k], is_leaf=is_none)) if t is not None]
 
             def sensitivities(inputs, t1, ts):
                 vec, rebuild = _flat_active(inputs, active)
                 return _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active)
 
-            if dyn[0].num_states >= SENSITIVITY_STATES:
+            if large_state(dyn[0]):
                 sensitivities = lane_by_lane(sensitivities)
             jac, (ys, status) = sensitivities(primals[:k], t1, ts)
         else:
             # through the explicit solver's steps (diffrax ForwardMode, one solve for all
             # directions)
+            vec, rebuild = _flat_active(primals[:k], active)
+
             def states(v):
                 dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
                 ys, status = _integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
@@ -206,11 +210,18 @@ def _flow_jvp(primals, tangents, *, cfg):
 SENSITIVITY_STATES = 12
 
 
+def large_state(system):
+    """Whether ``system`` has a large state (>= ``SENSITIVITY_STATES``): derivatives by
+    sensitivity equations, integrated lane by lane under vmap (:func:`lane_by_lane`),
+    Floquet monodromies at ``FLOQUET_RTOL``, chained sweep lanes one at a time."""
+    return system.num_states >= SENSITIVITY_STATES
+
+
 def _by_sensitivities(dyn, cfg):
     """Derivatives by sensitivity equations (implicit solvers, explicit ones whose steps
     are controlled on the tangents, and large states), not through the solver's steps."""
     implicit = isinstance(cfg.solver, diffrax.AbstractImplicitSolver)
-    large = dyn[0].num_states >= SENSITIVITY_STATES
+    large = large_state(dyn[0])
     return (implicit or cfg.tangent_control or large) and not dyn[0].hybrid
 
 

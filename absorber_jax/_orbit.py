@@ -25,10 +25,10 @@ import lineax as lx
 import numpy as np
 
 from ._flow import (
-    SENSITIVITY_STATES,
     _flat_inputs,
     _flow,
     accurate_tangents,
+    large_state,
     period_map,
     state_scale,
 )
@@ -193,7 +193,7 @@ def floquet_matrix(system, forcing, x0, n, cfg, n_cap=None):
     cfg = accurate_tangents(cfg)
     # no tighter than FLOQUET_RTOL (a large state's monodromy costs ~num_states
     # integrations) or FLOQUET_RTOL_SMALL
-    floor = FLOQUET_RTOL if system.num_states >= SENSITIVITY_STATES else FLOQUET_RTOL_SMALL
+    floor = FLOQUET_RTOL if large_state(system) else FLOQUET_RTOL_SMALL
     cfg = dataclasses.replace(cfg, rtol=max(cfg.rtol, floor), atol=max(cfg.atol, floor))
     return monodromy(system, forcing, x0, n, cfg, n_cap=n_cap)
 

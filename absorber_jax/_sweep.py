@@ -14,7 +14,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_time_grid, require_x64
-from ._flow import SENSITIVITY_STATES, lane_by_lane, state_scale
+from ._flow import lane_by_lane, large_state, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, read_through
 from ._params import replace_params, resolve
@@ -223,7 +223,7 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
 
 def _one_lane_at_a_time(system):
     """Whether a chained sweep runs its lanes one at a time (``lane_by_lane``) rather than
-    vmapped in lockstep: for large states (>= ``SENSITIVITY_STATES``), whose Floquet
+    vmapped in lockstep: for large states (``_flow.large_state``), whose Floquet
     monodromies run lane by lane anyway.  In lockstep every point of a chunk of lanes waits
     for the lane needing the most quasi-Newton steps (the 44-state building of
     ``scripts/benchmark_structure.py``: median 7, but up to the first pass's 20 in almost
@@ -232,7 +232,7 @@ def _one_lane_at_a_time(system):
     points, one lane per device and compiled call: fewer first points, each started from
     the linear guess with up to ~20 steps).  Measured there, 256 frequencies: 20.4 s
     vmapped (lanes of 4), 17.2 s one at a time in lanes of 16, 15.5 s in lanes of 64."""
-    return system.num_states >= SENSITIVITY_STATES
+    return large_state(system)
 
 
 def _by_chunks(rows, size, progress, solve, ndev=1):

@@ -21,6 +21,7 @@ from ._continuation import (  # noqa: E402
     continuation,
 )
 from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
+from ._devices import use_cpu_cores  # noqa: E402
 from ._elements import (  # noqa: E402
     AbstractElement,
     Contact,
@@ -83,4 +84,5 @@ __all__ = [
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",
+    "use_cpu_cores",
 ]

@@ -14,6 +14,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_time_grid, require_x64
+from ._devices import on_devices
 from ._flow import lane_by_lane, large_state, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, read_through
@@ -236,41 +237,25 @@ def _one_lane_at_a_time(system):
 
 
 def _by_chunks(rows, size, progress, solve, ndev=1):
-    """``solve(padded rows, device)`` on ``size`` rows of ``rows`` (point indices, one row per
-    lane) at a time, the last chunk padded by repeating its last row (one compilation serves
-    all); the results of the real rows, concatenated.  With ``ndev`` devices each chunk is
-    split into ``ndev`` equal parts, one per device (see :func:`_on_devices`)."""
+    """``solve(padded rows, device)`` on the rows of ``rows`` (point indices, one row per
+    lane), ``size // ndev`` rows at a time on each of ``ndev`` devices (``size`` a multiple
+    of ``ndev``), the last part padded by repeating its last row (one compilation serves
+    all); the results of the real rows, concatenated.  The devices work through the parts in
+    turn, each taking the next as soon as it is done (:func:`on_devices`)."""
     from tqdm.auto import tqdm
 
-    out = []
-    for start in tqdm(range(0, rows.shape[0], size), desc="sweep", disable=not progress):
-        idx = rows[start:start + size]
-        pad = size - idx.shape[0]
-        if pad:
-            idx = np.concatenate([idx, np.repeat(idx[-1:], pad, axis=0)])
-        res = _on_devices(solve, idx, ndev)
-        out.append(jax.tree_util.tree_map(lambda a, k=size - pad: np.asarray(a)[:k], res))
-    return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *out)
-
-
-def _on_devices(solve, idx, ndev):
-    """``solve(part, device)`` on ``ndev`` equal parts of ``idx`` (``len(idx)`` a multiple of
-    ``ndev``), each on its own local device; the results concatenated.
-
-    Each device runs its own copy of the single-device program (no collectives), the parts
-    dispatched one after another from this thread: accelerators run them side by side; on
-    CPU devices ``eqx.filter_jit`` waits for each call, so the parts run in turn (no gain
-    there: the 256-frequency sweep below took 20.1 s on two CPU devices, 20.4 s on one).
-    Two things that hung, on the 44-state building of ``scripts/benchmark_structure.py``
-    over two CPU devices (256 frequencies): the chunk sharded with ``jax.sharding`` as one
-    SPMD program (as until 2026-11-25), and the parts dispatched from one thread per
-    device; both run two executions at once on XLA's CPU thread pool, and both stopped with
-    the cores idle."""
-    if ndev <= 1:
-        return solve(idx, None)
-    devices = jax.local_devices()[:ndev]
-    res = [solve(part, d) for part, d in zip(np.split(idx, ndev), devices)]
-    return jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a]), *res)
+    part = size // ndev
+    jobs, keep = [], []
+    for start in range(0, rows.shape[0], part):
+        idx = rows[start:start + part]
+        keep.append(idx.shape[0])
+        if idx.shape[0] < part:
+            idx = np.concatenate([idx, np.repeat(idx[-1:], part - idx.shape[0], axis=0)])
+        jobs.append(idx)
+    with tqdm(total=len(jobs), desc="sweep", disable=not progress) as bar:
+        res = on_devices(solve, jobs, ndev, progress=bar.update)
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(
+        [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
 
 
 def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, progress):
@@ -348,7 +333,9 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
       chunks); ``progress``: show a tqdm bar over chunks.
     - ``shard``: split each chunk (``direction="parallel"``) over all local devices (when
       there are several), an equal part per device, each device running its own copy of
-      the program (compiled once per device); accelerators run the parts side by side.
+      the program (compiled once per device) and taking the next part when its last is
+      done.  On a CPU, :func:`use_cpu_cores` (before any JAX computation) gives one device
+      per core.
     - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
       ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
       the lanes still iterating resume from their last iterate a few at a time, and

@@ -10,7 +10,8 @@ mode 2.  Band 0.7–1.4 ω1.  State: 40 modal + 4 damper states.
 - absorber_jax: ``frequency_response`` (vmapped shooting, rtol = atol = 1e-7; ``--root
   chord`` by default: lanes of 4 neighbouring frequencies, each point from its neighbour's
   orbit and Floquet monodromy, see ``Shooting``; ``--root newton`` for a Jacobian per Newton
-  step), timed on a second identical call (the first compiles);
+  step), on one CPU device per core (``aj.use_cpu_cores``; ``--devices 1`` for one), timed on
+  a second identical call (the first compiles);
 - scipy: ``solve_ivp`` (DOP853, rtol 1e-8) of the same ODE in numpy, marched a period at a
   time until the Poincaré samples settle (``benchmark_sweep.march_until_settled``, 1e-4),
   on ``--scipy-points`` frequencies, its mean time per frequency extrapolated to 256.
@@ -20,7 +21,7 @@ difference of the roof amplitude on the common frequencies; appends to BENCHMARK
 ``--out``.
 
     python scripts/benchmark_structure.py [--points 256] [--scipy-points 4] [--root chord]
-                                          [--out FILE]
+                                          [--devices N] [--out FILE]
 """
 
 from __future__ import annotations
@@ -108,8 +109,11 @@ def main():
     ap.add_argument("--points", type=int, default=256)
     ap.add_argument("--scipy-points", type=int, default=4)
     ap.add_argument("--root", default="chord", choices=("chord", "newton"))
+    ap.add_argument("--devices", type=int, default=None,
+                    help="CPU devices (default: one per core, see aj.use_cpu_cores)")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
+    ndev = aj.use_cpu_cores(a.devices)     # before any JAX computation
     system, w = scene()
     om = np.linspace(0.7 * w[0], 1.4 * w[0], a.points)
     t0 = time.perf_counter()
@@ -128,7 +132,7 @@ def main():
     diff = max(abs(fr.amplitude[i] - s[0]) / s[0] for i, s in zip(idx, sp))
     lines = [
         f"## 20-DOF modal structure + 2 friction dampers, {a.points} frequencies",
-        f"- absorber_jax (root={a.root}): {t_jax:.2f} s after compilation "
+        f"- absorber_jax (root={a.root}, {ndev} CPU device(s)): {t_jax:.2f} s after compilation "
         f"({t_compile:.1f} s for the same sweep with compilation); {len(fr.failures())} failed, "
         f"{int((~fr.stable).sum())} unstable; root-finder steps median "
         f"{np.median(fr.iterations):.0f}, max {fr.iterations.max()}",

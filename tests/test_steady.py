@@ -203,8 +203,12 @@ def test_sweep_bad_input():
 
 def test_sweep_runs_sharded_over_two_cpu_devices():
     code = textwrap.dedent("""
-        import jax, numpy as np, absorber_jax as aj
+        import jax, numpy as np, pytest, absorber_jax as aj
+        assert aj.use_cpu_cores(2) == 2
         assert jax.local_device_count() == 2, jax.devices()
+        assert aj.use_cpu_cores(2) == 2     # started already, with as many: nothing to do
+        with pytest.raises(RuntimeError, match="before any JAX computation"):
+            aj.use_cpu_cores(3)
         system, _ = aj.presets.impact("kelvin_voigt", gap=0.0)
         om = np.linspace(30.0, 70.0, 6)
         frf = aj.frequency_response(system, om, amplitude=2.0, chunk_size=4)
@@ -214,8 +218,7 @@ def test_sweep_runs_sharded_over_two_cpu_devices():
         print(json.dumps([frf.amplitude.tolist(), frf.status.tolist(),
                           chord.amplitude.tolist(), chord.status.tolist()]))
     """)
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
-               JAX_PLATFORMS="cpu")
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
@@ -225,3 +228,23 @@ def test_sweep_runs_sharded_over_two_cpu_devices():
     np.testing.assert_allclose(amps, exact, rtol=1e-6)
     np.testing.assert_allclose(chord_amps, exact, rtol=1e-6)
     assert status == [0] * 6 and chord_status == [0] * 6
+
+
+def test_devices_work_through_jobs_in_order_and_raise_what_a_job_raised():
+    from absorber_jax._devices import on_devices
+
+    ticks = []
+    # jobs of unequal cost, more jobs than devices: each result lands at its job's place
+    out = on_devices(lambda j, d: np.full(3, j) ** 2, list(range(7)), 2,
+                     progress=lambda: ticks.append(1))
+    assert [int(o[0]) for o in out] == [j * j for j in range(7)] and len(ticks) == 7
+
+    def bad(j, d):
+        if j == 3:
+            raise FloatingPointError("job 3")
+        return np.zeros(1)
+
+    with pytest.raises(FloatingPointError, match="job 3"):
+        on_devices(bad, list(range(6)), 2)
+    with pytest.raises(ValueError, match="n must be a positive integer"):
+        aj.use_cpu_cores(0)

@@ -53,6 +53,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, require_x64
+from ._devices import on_devices, put
 from ._flow import _Config, _flow, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, SteadyState, _finish, read_through
@@ -927,6 +928,7 @@ def _run_batched(gens, prob, method, lanes=None):
     # on 60 rounds of 4 branches padded to 16 before the smaller batches): the batch is
     # halved, down to a quarter, while no more than that is pending
     sizes = [lanes] + ([lanes // 2, lanes // 4] if lanes >= 8 else [])
+    ndev = jax.local_device_count()
     results = [None] * len(gens)
     pending = {}
     for i, g in enumerate(gens):
@@ -938,13 +940,18 @@ def _run_batched(gens, prob, method, lanes=None):
         idx = list(pending)
         size = min(z for z in sizes if z >= len(idx))
         reqs = [pending[i] for i in idx] + [pending[idx[0]]] * (size - len(idx))
-        z, t, ss = _corrector_many(
-            prob, jnp.stack([jnp.asarray(r[0].prob.s0) for r in reqs]),
-            jnp.asarray(np.stack([r[1] for r in reqs])),
-            jnp.asarray(np.stack([r[2] for r in reqs])),
-            jnp.asarray([bool(r[3]) for r in reqs]), method.tol,
-            method.newton_steps)
-        z, t, ss = jax.tree_util.tree_map(np.asarray, (z, t, ss))
+        s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
+        zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
+        pa = np.asarray([bool(r[3]) for r in reqs])
+        # a batch of several lanes per device is split over the devices (see on_devices)
+        parts = ndev if size % ndev == 0 and size >= 2 * ndev else 1
+
+        def solve(j, device, arrays=(s0, zp, tp, pa)):
+            return _corrector_many(prob, *(put(a[j], device) for a in arrays),
+                                   method.tol, method.newton_steps)
+
+        z, t, ss = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *on_devices(
+            solve, np.split(np.arange(size), parts), parts))
         for j, i in enumerate(idx):
             point = pending[i][0].point(z[j], t[j], jax.tree_util.tree_map(lambda a, j=j: a[j], ss))
             try:

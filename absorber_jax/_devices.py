@@ -44,6 +44,12 @@ def use_cpu_cores(n=None):
     return n
 
 
+def put(x, device):
+    """``x`` as an array committed to ``device`` (None: the default device, uncommitted)."""
+    x = jax.numpy.asarray(x)
+    return x if device is None else jax.device_put(x, device)
+
+
 def on_devices(solve, jobs, ndev, progress=None):
     """``[solve(job, device) for job in jobs]``, with ``ndev`` local devices working through
     the jobs in turn (``device`` is None with one device: the default, uncommitted).

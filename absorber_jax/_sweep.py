@@ -14,7 +14,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_time_grid, require_x64
-from ._devices import on_devices
+from ._devices import on_devices, put
 from ._flow import lane_by_lane, large_state, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, read_through
@@ -134,11 +134,11 @@ def _in_batches(res, bad, solve, desc, progress):
         out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad))
         out = eqx.tree_at(lambda r: r.iterations, out, out.iterations + res.iterations[idx])
 
-        def put(dst, src, idx=idx):
+        def write(dst, src, idx=idx):
             dst[idx] = src
             return dst
 
-        res = jax.tree_util.tree_map(put, res, out)
+        res = jax.tree_util.tree_map(write, res, out)
     return res
 
 
@@ -262,7 +262,7 @@ def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, 
     """The points ``(W, PV)`` solved independently, ``size`` per compiled call; the flat
     results."""
     return _by_chunks(np.arange(W.shape[0]), size, progress, lambda p, d: _parallel_chunk(
-        system, _put(W[p], d), amp, _put(PV[p], d), cfg, first, names, floquet), ndev)
+        system, put(W[p], d), amp, put(PV[p], d), cfg, first, names, floquet), ndev)
 
 
 def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress,
@@ -283,7 +283,7 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
                             for a in range(0, total, per_design)])      # (L, k) points
     size = ndev if alone else int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
     res = _by_chunks(lanes, size, progress, lambda p, d: _chained_chunk(
-        system, _put(W[p], d), amp, _put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev)
+        system, put(W[p], d), amp, put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev)
     # back to one result per point (a lane padded by repeating its last point wrote it twice)
     flat = lanes.reshape(-1)
     where = np.empty(total, dtype=int)
@@ -478,10 +478,3 @@ def _check_params(system, params):
         if not np.all(np.isfinite(v)):
             raise ValueError(f"params[{k!r}] must be finite")
     return names, np.stack(cols, axis=1)
-
-
-def _put(x, device):
-    """``x`` as a float array committed to ``device`` (None: the default device,
-    uncommitted)."""
-    x = jnp.asarray(x, dtype=float)
-    return x if device is None else jax.device_put(x, device)

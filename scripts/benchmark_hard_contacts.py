@@ -22,7 +22,7 @@ F0 = 3 N, band 20–45 rad/s.
 
     python scripts/benchmark_hard_contacts.py [--scenes kv,hertz] [--parts map,cont,band]
                                               [--scipy-periods 40] [--band-rtol 1e-7]
-                                              [--out FILE]
+                                              [--devices N] [--out FILE]
 
 Prints each result as it comes; ``--out`` appends them to FILE
 (docs/benchmark_hard_contacts.txt holds the last run).
@@ -139,8 +139,11 @@ def main():
     ap.add_argument("--parts", default="map,cont")
     ap.add_argument("--scipy-periods", type=int, default=40)
     ap.add_argument("--band-rtol", type=float, default=1e-7)
+    ap.add_argument("--devices", type=int, default=None,
+                    help="CPU devices (default: one per core, see aj.use_cpu_cores)")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
+    report(f"{aj.use_cpu_cores(a.devices)} CPU device(s)")     # before any JAX computation
     for name in a.scenes.split(","):
         if "map" in a.parts:
             attractor_map(name, a.scipy_periods)

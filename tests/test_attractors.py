@@ -83,8 +83,15 @@ def test_non_periodic_response_is_flagged_and_measured():
               f"range [{ours.min():.4f}, {ours.max():.4f}] vs [{ref.min():.4f}, {ref.max():.4f}]")
         assert abs(np.sqrt(np.mean(ours**2)) - np.sqrt(np.mean(ref**2))) < 1e-2 * span
         assert abs(ours.mean() - ref.mean()) < 1e-2 * span
-        assert abs(ours.min() - ref.min()) < 4e-2 * span
-        assert abs(ours.max() - ref.max()) < 4e-2 * span
+        # the section's extent: its 2 % and 98 % quantiles (measured within 0.8 % of the
+        # span of the exact map's, whose own 1000-period windows agree to 0.4 %), and its
+        # extremes, which are single samples of a chaotic sequence: the exact map's
+        # 1000-period windows differ by up to 4 % of the span in their maximum (0.057 ..
+        # 0.074 over periods 400 .. 3400), so the extremes are held to 10 %
+        for q in (2, 98):
+            assert abs(np.percentile(ours, q) - np.percentile(ref, q)) < 2e-2 * span
+        assert abs(ours.min() - ref.min()) < 0.1 * span
+        assert abs(ours.max() - ref.max()) < 0.1 * span
     # the designer's number: the largest |q2| over the window, finite and above the RMS
     assert np.all(np.isfinite(m.peak)) and np.all(m.peak > m.rms)
     # the largest Lyapunov exponent of lane 0 against Benettin's on the exact map, over the

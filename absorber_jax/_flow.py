@@ -215,7 +215,7 @@ def large_state(system):
     """Whether ``system`` has a large state (>= ``SENSITIVITY_STATES``): derivatives by
     sensitivity equations, integrated lane by lane under vmap (:func:`lane_by_lane`),
     Floquet monodromies at ``FLOQUET_RTOL``, chained sweep lanes one at a time, explicit
-    solvers' stages unrolled (:mod:`absorber_jax._unrolled`)."""
+    solvers' stages unrolled for smooth systems (:mod:`absorber_jax._unrolled`)."""
     return system.num_states >= SENSITIVITY_STATES
 
 
@@ -237,8 +237,9 @@ def lane_by_lane(fn):
     integration takes its own steps on a state that stays in cache.  Measured on 64 Floquet
     monodromies of the 44-state building of ``scripts/benchmark_structure.py`` (this 2-core
     machine): 4.31 s vmapped, 1.85 s lane by lane (the same matrices to 1e-13).  Small
-    states (a plain period of the same system: 2.3 ms per lane vmapped against 4 ms alone)
-    are better vmapped.  Closed-over values must not be batched: pass them as arguments."""
+    states (a plain period of the same system: 2.3 ms per lane vmapped against 4 ms alone
+    through diffrax's stage loop, 2.4 ms with unrolled stages) are better vmapped.
+    Closed-over values must not be batched: pass them as arguments."""
     from jax.custom_batching import custom_vmap
 
     def call(*args):
@@ -369,10 +370,11 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
     lam, period = system.stiffness_rate(), forcing.period
     stiffish = (not is_traced(lam) and not is_traced(period)
                 and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
-    if large_state(system):
+    if large_state(system) and not system.hybrid:
         # run lane by lane, a large state's period integrations pay diffrax's per-stage loop
         # bookkeeping in full (vmapped lanes share it): unrolled stages, the same steps and
-        # numbers (see absorber_jax._unrolled; integrations carrying tangents keep the loop)
+        # numbers (see absorber_jax._unrolled; integrations carrying tangents keep the loop,
+        # and a hybrid system's derivatives go through its segments' own steps: not there)
         solver_obj = unrolled(solver_obj)
     return _Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
                    tangent_control=bool(explicit and stiffish and not system.hybrid))

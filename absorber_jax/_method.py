@@ -57,6 +57,6 @@ class AbstractSteadyMethod(eqx.Module):
         return self
 
     def resume(self, budget):
-        """The method that finishes, from their last iterate, the points still iterating
+        """The method that finishes, from their best iterate, the points still iterating
         after ``first_pass(budget)``; None when there is nothing to resume."""
         return None

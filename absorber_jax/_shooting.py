@@ -24,9 +24,16 @@ from ._orbit import _finish, floquet_matrix, monodromy
 from ._status import Status
 
 
+def _counts(size):
+    """Whether a residual of max-norm ``size`` can be a solve's best: finite, and not the
+    exact zero that :func:`_residual` gives for a failed integration (a true orbit's
+    residual is never exactly zero, short of a rest state, where every iterate is one)."""
+    return jnp.isfinite(size) & (size > 0)
+
+
 class _KeepsBest:
     """Mixed into an optimistix Newton or Chord (before it): the iterate with the smallest
-    residual seen is kept, and returned when the solve ends unconverged.
+    residual evaluated is kept and returned, converged or not.
 
     A period map integrated adaptively is noisy at the integration tolerance (an accepted or
     rejected step near a contact moves the end state): on the Hunt–Crossley scene at 40
@@ -34,7 +41,10 @@ class _KeepsBest:
     then wanders there, its steps (~1e-6) above its step tolerance; even a step below it
     can land on a residual of 3e-6.  The last iterate's residual is then a draw from that
     noise, above or below the shooting tolerance by chance (the rounding of one solver or
-    another decided it); the best one is not."""
+    another decided it); the best one is not.  A converged solve ends on an iterate whose
+    residual is within ``atol`` (``0.1 tol`` in :func:`shoot`): the best one is at least
+    that good, so the orbit meets ``tol`` with the same margin, though it forgoes the last
+    (unevaluated) Newton step's further gain on a smooth map."""
 
     def init(self, fn, y, args, options, f_struct, aux_struct, tags):
         inner = super().init(fn, y, args, options, f_struct, aux_struct, tags)
@@ -45,7 +55,7 @@ class _KeepsBest:
         y1, inner, aux = super().step(fn, y, args, options, inner, tags)
         # the residual of this step's input y (f is evaluated there)
         size = self.norm(inner.f)
-        better = jnp.isfinite(size) & (size < best)
+        better = _counts(size) & (size < best)
         best_y = jax.tree_util.tree_map(lambda a, b: jnp.where(better, a, b), y, best_y)
         return y1, (inner, best_y, jnp.where(better, size, best)), aux
 
@@ -53,9 +63,6 @@ class _KeepsBest:
         return super().terminate(fn, y, args, options, state[0], tags)
 
     def postprocess(self, fn, y, aux, args, options, state, tags, result):
-        # the best iterate even after a converged solve: its residual is known (within
-        # the tolerance there), the last one's is not, and the noise above can move it
-        # by ~1e-6 for a step of 1e-7
         _, best_y, best = state
         y = jax.tree_util.tree_map(lambda a, b: jnp.where(jnp.isfinite(best), b, a), y, best_y)
         return y, aux, {}
@@ -146,11 +153,15 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
 def _broyden(residual, x0, H0, args, tol, steps):
     """Quasi-Newton iterations ``x <- x - H r(x)`` from the inverse-Jacobian guess ``H0``,
     ``H`` improved by Broyden's ("good") rank-one update after every step, until a step is
-    within ``tol`` (max-norm); returns the iterate with the smallest residual evaluated (as
-    :class:`_KeepsBest`: the period map is noisy at the integration tolerance) and the
-    number of steps.  With the exact Jacobian inverse it is Newton; with a neighbour's it
-    converges superlinearly where the plain chord (``H`` kept) converges linearly or not at
-    all (a coarse frequency grid)."""
+    within ``tol`` (max-norm).  Returns the iterate after that last step, or, when the
+    budget ran out first (or the last residual came from a failed integration), the
+    iterate with the smallest residual evaluated (as :class:`_KeepsBest`: the period map is
+    noisy at the integration tolerance); and the number of steps.  (The iterate after a
+    step within ``tol`` is kept rather than the one it started from: its residual, up to
+    ``|H^-1| tol``, may exceed the shooting tolerance that the one after meets.)  With the
+    exact Jacobian inverse it is Newton; with a neighbour's it converges superlinearly
+    where the plain chord (``H`` kept) converges linearly or not at all (a coarse
+    frequency grid)."""
 
     def cond(c):
         k, done = c[4], c[5]
@@ -176,16 +187,18 @@ def _broyden(residual, x0, H0, args, tol, steps):
         # a failed integration gives a zero residual (see _residual): the step is zero next
         r1, H1 = jax.lax.cond(done, lambda: (r, H), lambda: update(x1, dx, r, H))
         size = jnp.max(jnp.abs(r1))
-        better = ~done & jnp.isfinite(size) & (size < best[1])
+        better = ~done & _counts(size) & (size < best[1])
         best = (jnp.where(better, x1, best[0]), jnp.where(better, size, best[1]))
         return x1, r1, H1, best, k + 1, done
 
     r0 = residual(x0, args)
-    best = (x0, jnp.where(jnp.all(jnp.isfinite(r0)), jnp.max(jnp.abs(r0)), jnp.inf))
-    x, _, _, best, k, done = jax.lax.while_loop(
+    size0 = jnp.max(jnp.abs(r0))
+    best = (x0, jnp.where(_counts(size0), size0, jnp.inf))
+    x, r, _, best, k, done = jax.lax.while_loop(
         cond, body, (x0, r0, H0, best, jnp.asarray(0), jnp.asarray(False)))
-    # converged: the last step was within tol of the last evaluated iterate
-    return jnp.where(done, x, best[0]), k
+    # a zero step after a failed integration's zero residual is no convergence
+    keep_last = done & ~(jnp.all(r == 0) & jnp.isfinite(best[1]))
+    return jnp.where(keep_last, x, best[0]), k
 
 
 def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=40,
@@ -197,8 +210,9 @@ def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=4
     reuse: the Floquet monodromy at the orbit when it was computed and the orbit converged,
     else the Jacobian given.
 
-    A sweep hands each point its neighbour's orbit and monodromy (``Shooting.chains``): the
-    monodromy at an orbit serves its Floquet multipliers *and* the next point's start, one
+    A sweep hands each point its neighbours' orbit and monodromy (``Shooting.chains``;
+    extrapolated from the last two): the monodromy at an orbit serves its Floquet
+    multipliers *and* the next points' start, one
     monodromy per point where :func:`shoot` with ``root="chord"`` computes two (at the guess,
     at the orbit)."""
     residual = _residual(n, cfg)
@@ -225,9 +239,9 @@ class Shooting(AbstractSteadyMethod):
     - ``newton_steps``: Newton iteration budget.
     - ``root``: ``"newton"`` (minimum-norm SVD steps), ``"chord"`` (the first Jacobian
       reused: one monodromy per solve, for large structural states with close guesses; in
-      a parallel sweep the points run in lanes of neighbours, each from the previous orbit
-      with the previous Floquet monodromy as its Jacobian, Broyden-updated: see
-      :func:`shoot_chord`) or ``"lm"`` (Levenberg–Marquardt).
+      a parallel sweep the points run in lanes of neighbours, each from the previous orbits
+      with the previous Floquet monodromies as its Jacobian (extrapolated from the last
+      two), Broyden-updated: see :func:`shoot_chord`) or ``"lm"`` (Levenberg–Marquardt).
     - ``retry``: a failed solve is retried by marching from rest and polishing the marched
       orbit by shooting, before it is flagged.
     - ``give_up``: with ``root="newton"``, stop after this many Newton steps if the scaled

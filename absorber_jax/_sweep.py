@@ -91,7 +91,7 @@ def _one_point(system, omega, amplitude, guess, cfg, method, with_floquet):
 # failed shooting points are retried in vmapped batches of this size (one compilation)
 RETRY_BATCH = 8
 # Newton steps of the vmapped first pass: a lane still iterating then is resumed from its
-# last iterate with the rest of the budget, in a small batch, so that the whole chunk does
+# best iterate with the rest of the budget, in a small batch, so that the whole chunk does
 # not run in lockstep at the pace of its slowest lane (measured on the friction absorber of
 # scripts/benchmark_sweep.py: 230 of 256 points converge in <= 5 steps, one takes 14).
 # 5 rather than 8 (measured on the three scenes of scripts/benchmark_sweep.py, 256 points):
@@ -219,8 +219,10 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
             (x1, j1, w1), (x2, j2, w2), count = carry
             f = _forcing(amplitude, w)
             s = state_scale(sysp, f)
-            r = (w - w1) / jnp.where(count >= 2, w1 - w2, 1.0)
-            r = jnp.where((count >= 2) & (r <= MAX_EXTRAPOLATION), r, 0.0)
+            # (a padded lane repeats its last frequency: w1 == w2 there, no extrapolation)
+            two = (count >= 2) & (w1 != w2)
+            r = (w - w1) / jnp.where(two, w1 - w2, 1.0)
+            r = jnp.where(two & (r <= MAX_EXTRAPOLATION), r, 0.0)
             x = x1 + r * (x1 - x2)
             jac = (j1 + r * (j1 - j2)) if with_floquet else j1
             res, jac = method.solve_chained(sysp, f, x / s, jac / s[:, None] * s[None, :], cfg,
@@ -245,8 +247,9 @@ def _one_lane_at_a_time(system):
     monodromies run lane by lane anyway.  In lockstep every point of a chunk of lanes waits
     for the lane needing the most quasi-Newton steps (the 44-state building of
     ``scripts/benchmark_structure.py``: median 7, but up to the first pass's 20 in almost
-    every chunk); one at a time, a period integration costs 4 ms instead of 2.3 ms per
-    lane but each lane takes only its own steps, and lanes can be longer (``ALONE_CHAIN``
+    every chunk); one at a time, a period integration cost 4 ms instead of 2.3 ms per
+    lane (2.4 ms since its stages are unrolled, see ``_unrolled``) but each lane takes only
+    its own steps, and lanes can be longer (``ALONE_CHAIN``
     points, one lane per device and compiled call: fewer first points, each started from
     the linear guess with up to ~20 steps).  Measured there, 256 frequencies: 20.4 s
     vmapped (lanes of 4), 17.2 s one at a time in lanes of 16, 15.5 s in lanes of 64."""
@@ -286,8 +289,8 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
                    per_design):
     """The points ``(W, PV)`` (design-major: ``per_design`` frequencies of each design, in
     order) solved in lanes of up to ``MAX_CHAIN`` consecutive frequencies of one design, so
-    that every point but a lane's first starts from its neighbour's orbit with its
-    neighbour's monodromy as the chord's Jacobian; ``chunk_size`` lanes per compiled call
+    that every point but a lane's first starts from its neighbours' orbits and monodromies
+    (the chord's Jacobian; see :func:`_chained_chunk`); ``chunk_size`` lanes per compiled call
     (large states: lanes of ``ALONE_CHAIN``, one per device and call).
     Returns the flat results (one per point)."""
     total = W.shape[0]
@@ -355,15 +358,16 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
       per core.
     - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
       ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
-      the lanes still iterating resume from their last iterate a few at a time, and
+      the lanes still iterating resume from their best iterate a few at a time, and
       (``retry``, the default) the points that still failed are re-solved by marching then
       shooting (:func:`march_then_shoot`) before they are flagged.
     - With ``root="chord"`` the parallel pass solves lanes of up to ``MAX_CHAIN``
       neighbouring frequencies (``ceil(points / chunk_size)`` of them; large states:
-      ``ALONE_CHAIN``, one lane at a time), each point from the previous orbit of its lane
-      with the previous Floquet monodromy as its Jacobian: one monodromy per point
-      (measured on the 44-state building of ``scripts/benchmark_structure.py``: 62 → 34 s
-      for 256 frequencies; 15.5 s with large states' lanes one at a time).
+      ``ALONE_CHAIN``, one lane at a time), each point from the previous orbits of its lane
+      (extrapolated from the last two) with the previous Floquet monodromies as its
+      Jacobian: one monodromy per point (measured on the 44-state building of
+      ``scripts/benchmark_structure.py``: 62 → 34 s for 256 frequencies; 15.5 s with large
+      states' lanes one at a time, 7.1 s on two cores with the later changes).
     - the remaining keywords as in :func:`steady_state`.
 
     ```python

@@ -21,6 +21,8 @@ at ``(t1, y1)`` and its field carried to the next step.
 
 from __future__ import annotations
 
+import dataclasses
+
 import diffrax
 import equinox.internal as eqxi
 import jax
@@ -50,6 +52,10 @@ class _UnrolledStages:
     a diffrax solver class, before it)."""
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        if solver_state is None:
+            # diffrax turned first-same-as-last off (an expensive vector field, as under
+            # BacksolveAdjoint): its own step
+            return super().step(terms, t0, t1, y0, args, solver_state, made_jump)
         tab = self.tableau
         first_step, f_last = solver_state
         control = terms.contr(t0, t1)
@@ -93,11 +99,17 @@ _UNROLLED = {diffrax.Tsit5: Tsit5, diffrax.Dopri5: Dopri5, diffrax.Dopri8: Dopri
 _LOOPED = {v: k for k, v in _UNROLLED.items()}
 
 
+def _as(cls, solver):
+    """A ``cls`` with ``solver``'s options (``scan_kind``)."""
+    return cls(**{f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)
+                  if f.init})
+
+
 def unrolled(solver):
     """``solver`` with its stages unrolled (diffrax's Tsit5, Dopri5, Dopri8, Bosh3; any other
     solver as it is)."""
     cls = _UNROLLED.get(type(solver))
-    return solver if cls is None else cls()
+    return solver if cls is None else _as(cls, solver)
 
 
 def looped(solver):
@@ -106,4 +118,4 @@ def looped(solver):
     outweighs the loop's bookkeeping (the 44-state building's monodromy: 29 ms either way)
     while unrolled stages double the compilation (1.9 -> 4.0 s)."""
     cls = _LOOPED.get(type(solver))
-    return solver if cls is None else cls()
+    return solver if cls is None else _as(cls, solver)

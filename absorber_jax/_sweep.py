@@ -121,15 +121,23 @@ def _retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floq
     return jax.vmap(point)(omegas, pvals)
 
 
-def _in_batches(res, bad, solve, desc, progress):
+def _retry_batch(system):
+    """Points per resume or retry call: ``RETRY_BATCH``, or 1 for large states, whose
+    Jacobians run lane by lane, so that a padding lane costs as much as a real one (the
+    20-DOF building's one straggler of 256 points was resumed in a batch of 8: 0.82 s of
+    a 7.2 s sweep)."""
+    return 1 if large_state(system) else RETRY_BATCH
+
+
+def _in_batches(res, bad, solve, desc, progress, size=RETRY_BATCH):
     """Apply ``solve(padded indices)`` to the points ``bad`` of a flat (point-axis) result in
-    fixed batches of ``RETRY_BATCH`` (one compilation) and write the results back; the
-    iteration counts add up."""
+    fixed batches of ``size`` (one compilation) and write the results back; the iteration
+    counts add up."""
     from tqdm.auto import tqdm
 
-    for start in tqdm(range(0, bad.size, RETRY_BATCH), desc=desc, disable=not progress):
-        idx = bad[start:start + RETRY_BATCH]
-        pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
+    for start in tqdm(range(0, bad.size, size), desc=desc, disable=not progress):
+        idx = bad[start:start + size]
+        pad = np.concatenate([idx, np.repeat(idx[-1:], size - idx.size)])
         k = idx.size
         out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad))
         out = eqx.tree_at(lambda r: r.iterations, out, out.iterations + res.iterations[idx])
@@ -158,12 +166,12 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
 
         res = _in_batches(res, slow, lambda p: _resume_chunk(
             system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), guesses(p), cfg, rest, names,
-            with_floquet), "resume", progress)
+            with_floquet), "resume", progress, _retry_batch(system))
     if method.retry:
         bad = np.flatnonzero(res.status != Status.SUCCESS)
         res = _in_batches(res, bad, lambda p: _retry_chunk(
             system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
-            with_floquet), "retry", progress)
+            with_floquet), "retry", progress, _retry_batch(system))
     return res
 
 
@@ -466,7 +474,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
             bad = np.flatnonzero(flat.status != Status.SUCCESS)
             flat = _in_batches(flat, bad, lambda p: _retry_chunk(
                 system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
-                floquet), "retry", progress)
+                floquet), "retry", progress, _retry_batch(system))
             res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), flat)
     squeeze = params is None
     get = (lambda a: a[0]) if squeeze else (lambda a: a)

@@ -24,8 +24,9 @@ def use_cpu_cores(n=None):
     then); it raises ``RuntimeError`` after.  Returns the number of CPU devices.
 
     Measured on 2 cores (``scripts/benchmark_structure.py``: the 20-storey building with two
-    friction dampers, 256 frequencies): 15.9 s on one device, 8.6 s on two (12.4 s and
-    7.1 s since large states' stages are unrolled and chained starts extrapolated)."""
+    friction dampers, 256 frequencies): 15.9 s on one device, 8.6 s on two (11.7 s and
+    6.2 s since large states' stages are unrolled, their stragglers resumed one per call
+    and chained starts extrapolated)."""
     if n is None:
         n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:

@@ -53,7 +53,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, require_x64
-from ._devices import on_devices, put
+from ._devices import by_parts, put
 from ._flow import _Config, _flow, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, SteadyState, _finish, read_through
@@ -923,7 +923,7 @@ def _run_batched(gens, prob, method, lanes=None):
     batch several phases give them all the same ``lanes``: one compilation per batch size,
     ~5 s each on the hard-contact scenes).  With several local devices a batch of at least
     two lanes per device is split into equal parts, one vmapped call per device
-    (:func:`on_devices`; each part size compiles once per device): the Kelvin–Voigt band
+    (:func:`by_parts`; each part size compiles once per device): the Kelvin–Voigt band
     of scripts/benchmark_hard_contacts.py 75 -> 67.5 s on two CPU devices."""
     lanes = len(gens) if lanes is None else lanes
     # the few branches snaking through folds, or locating bifurcations, go on for many more
@@ -946,15 +946,14 @@ def _run_batched(gens, prob, method, lanes=None):
         s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
         zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
         pa = np.asarray([bool(r[3]) for r in reqs])
-        # a batch of several lanes per device is split over the devices (see on_devices)
+        # a batch of several lanes per device is split over the devices (see by_parts)
         parts = ndev if size % ndev == 0 and size >= 2 * ndev else 1
 
         def solve(j, device, arrays=(s0, zp, tp, pa)):
             return _corrector_many(prob, *(put(a[j], device) for a in arrays),
                                    method.tol, method.newton_steps)
 
-        z, t, ss = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *on_devices(
-            solve, np.split(np.arange(size), parts), parts))
+        z, t, ss = by_parts(np.arange(size), size, solve, parts)
         for j, i in enumerate(idx):
             point = pending[i][0].point(z[j], t[j], jax.tree_util.tree_map(lambda a, j=j: a[j], ss))
             try:

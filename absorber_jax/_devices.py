@@ -107,3 +107,26 @@ def on_devices(solve, jobs, ndev, progress=None):
     if errors:
         raise errors[0]
     return out
+
+
+def by_parts(rows, size, solve, ndev, progress=False):
+    """``solve(padded rows, device)`` on the rows of ``rows`` (point indices, one row per
+    lane), ``size // ndev`` rows at a time on each of ``ndev`` devices (``size`` a multiple
+    of ``ndev``), the last part padded by repeating its last row (one compilation serves
+    all); the results of the real rows, concatenated.  The devices work through the parts in
+    turn, each taking the next as soon as it is done (:func:`on_devices`); ``progress``: a
+    tqdm bar over the parts."""
+    from tqdm.auto import tqdm
+
+    part = size // ndev
+    jobs, keep = [], []
+    for start in range(0, rows.shape[0], part):
+        idx = rows[start:start + part]
+        keep.append(idx.shape[0])
+        if idx.shape[0] < part:
+            idx = np.concatenate([idx, np.repeat(idx[-1:], part - idx.shape[0], axis=0)])
+        jobs.append(idx)
+    with tqdm(total=len(jobs), desc="sweep", disable=not progress) as bar:
+        res = on_devices(solve, jobs, ndev, progress=bar.update)
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(
+        [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)

@@ -26,7 +26,7 @@ from ._checks import is_traced
 from ._simulate import _resolve_solver
 from ._status import Status, from_diffrax
 from ._stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
-from ._unrolled import looped, unrolled
+from ._unrolled import unrolled
 
 # stick–slip segments allowed in one integration (the loop ends at t1 long before, unless
 # the motion chatters)
@@ -92,6 +92,13 @@ def _integrate(dyn, x0, t0, t1, ts, cfg):
             max_steps=cfg.max_steps, scale=state_scale(system, forcing),
             max_segments=MAX_SEGMENTS)
         return (x[None] if ts is None else ys), status
+    if large_state(system):
+        # run lane by lane, a large state's plain integrations pay diffrax's per-stage loop
+        # bookkeeping in full (vmapped lanes share it): unrolled stages, the same steps and
+        # numbers (absorber_jax._unrolled).  Only here: the integrations that carry tangents
+        # (_sensitivity_jacobian, flow_along) keep diffrax's loop, which costs them nothing
+        # and compiles in half the time
+        cfg = dataclasses.replace(cfg, solver=unrolled(cfg.solver))
     return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, t0, t1, ts, cfg)
 
 
@@ -214,8 +221,8 @@ SENSITIVITY_STATES = 12
 def large_state(system):
     """Whether ``system`` has a large state (>= ``SENSITIVITY_STATES``): derivatives by
     sensitivity equations, integrated lane by lane under vmap (:func:`lane_by_lane`),
-    Floquet monodromies at ``FLOQUET_RTOL``, chained sweep lanes one at a time, explicit
-    solvers' stages unrolled for smooth systems (:mod:`absorber_jax._unrolled`)."""
+    Floquet monodromies at ``FLOQUET_RTOL``, chained sweep lanes one at a time, a smooth
+    system's plain integrations with unrolled stages (:func:`_integrate`)."""
     return system.num_states >= SENSITIVITY_STATES
 
 
@@ -305,7 +312,6 @@ def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
             return jnp.sqrt(0.5 * (jnp.mean(ex**2) + jnp.max(jnp.mean(eD**2, axis=0))))
     else:
         norm = lambda e: optx.rms_norm(e[0])  # noqa: E731
-    cfg = dataclasses.replace(cfg, solver=looped(cfg.solver))
     (ys, dys), status = _diffeqsolve(augmented, (x0, D0), 0.0, t1, ts, cfg, norm=norm)
     # a sensitivity integration that failed gives no derivative (the status flags the point)
     dys = jnp.where((status == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
@@ -335,7 +341,6 @@ def flow_along(dyn, x0, v0, t1, ts, cfg):
     def norm(e):
         return jnp.sqrt(0.5 * (jnp.mean(e[0] ** 2) + jnp.mean(e[1] ** 2)))
 
-    cfg = dataclasses.replace(cfg, solver=looped(cfg.solver))
     (ys, vs), status = _diffeqsolve(augmented, (x0, v0), 0.0, t1, ts, cfg, norm=norm)
     return ys, vs, status
 
@@ -370,11 +375,5 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
     lam, period = system.stiffness_rate(), forcing.period
     stiffish = (not is_traced(lam) and not is_traced(period)
                 and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
-    if large_state(system) and not system.hybrid:
-        # run lane by lane, a large state's period integrations pay diffrax's per-stage loop
-        # bookkeeping in full (vmapped lanes share it): unrolled stages, the same steps and
-        # numbers (see absorber_jax._unrolled; integrations carrying tangents keep the loop,
-        # and a hybrid system's derivatives go through its segments' own steps: not there)
-        solver_obj = unrolled(solver_obj)
     return _Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
                    tangent_control=bool(explicit and stiffish and not system.hybrid))

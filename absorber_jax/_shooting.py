@@ -24,11 +24,14 @@ from ._orbit import _finish, floquet_matrix, monodromy
 from ._status import Status
 
 
-def _counts(size):
-    """Whether a residual of max-norm ``size`` can be a solve's best: finite, and not the
-    exact zero that :func:`_residual` gives for a failed integration (a true orbit's
-    residual is never exactly zero, short of a rest state, where every iterate is one)."""
-    return jnp.isfinite(size) & (size > 0)
+def _keep_best(best, y, size, valid=True):
+    """``best = (iterate, residual max-norm)`` with ``(y, size)`` in its place where
+    ``size`` is smaller and counts: finite, and not the exact zero that :func:`_residual`
+    gives for a failed integration (a true orbit's residual is never exactly zero, short of
+    a rest state, where every iterate is one)."""
+    better = valid & jnp.isfinite(size) & (size > 0) & (size < best[1])
+    return (jax.tree_util.tree_map(lambda a, b: jnp.where(better, a, b), y, best[0]),
+            jnp.where(better, size, best[1]))
 
 
 class _KeepsBest:
@@ -48,22 +51,19 @@ class _KeepsBest:
 
     def init(self, fn, y, args, options, f_struct, aux_struct, tags):
         inner = super().init(fn, y, args, options, f_struct, aux_struct, tags)
-        return inner, y, jnp.asarray(jnp.inf, dtype=jnp.result_type(float))
+        return inner, (y, jnp.asarray(jnp.inf, dtype=jnp.result_type(float)))
 
     def step(self, fn, y, args, options, state, tags):
-        inner, best_y, best = state
+        inner, best = state
         y1, inner, aux = super().step(fn, y, args, options, inner, tags)
         # the residual of this step's input y (f is evaluated there)
-        size = self.norm(inner.f)
-        better = _counts(size) & (size < best)
-        best_y = jax.tree_util.tree_map(lambda a, b: jnp.where(better, a, b), y, best_y)
-        return y1, (inner, best_y, jnp.where(better, size, best)), aux
+        return y1, (inner, _keep_best(best, y, self.norm(inner.f))), aux
 
     def terminate(self, fn, y, args, options, state, tags):
         return super().terminate(fn, y, args, options, state[0], tags)
 
     def postprocess(self, fn, y, aux, args, options, state, tags, result):
-        _, best_y, best = state
+        _, (best_y, best) = state
         y = jax.tree_util.tree_map(lambda a, b: jnp.where(jnp.isfinite(best), b, a), y, best_y)
         return y, aux, {}
 
@@ -186,14 +186,11 @@ def _broyden(residual, x0, H0, args, tol, steps):
         # runs both branches)
         # a failed integration gives a zero residual (see _residual): the step is zero next
         r1, H1 = jax.lax.cond(done, lambda: (r, H), lambda: update(x1, dx, r, H))
-        size = jnp.max(jnp.abs(r1))
-        better = ~done & _counts(size) & (size < best[1])
-        best = (jnp.where(better, x1, best[0]), jnp.where(better, size, best[1]))
+        best = _keep_best(best, x1, jnp.max(jnp.abs(r1)), ~done)
         return x1, r1, H1, best, k + 1, done
 
     r0 = residual(x0, args)
-    size0 = jnp.max(jnp.abs(r0))
-    best = (x0, jnp.where(_counts(size0), size0, jnp.inf))
+    best = _keep_best((x0, jnp.asarray(jnp.inf, dtype=r0.dtype)), x0, jnp.max(jnp.abs(r0)))
     x, r, _, best, k, done = jax.lax.while_loop(
         cond, body, (x0, r0, H0, best, jnp.asarray(0), jnp.asarray(False)))
     # a zero step after a failed integration's zero residual is no convergence

@@ -14,7 +14,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_time_grid, require_x64
-from ._devices import on_devices, put
+from ._devices import by_parts, put
 from ._flow import lane_by_lane, large_state, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, read_through
@@ -224,11 +224,12 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
         def step(carry, w):
             # the last two converged points: internal orbit states, Jacobians in unscaled
             # internal coordinates (diag(s) J diag(1/s): velocities scale with ω), frequencies
-            (x1, j1, w1), (x2, j2, w2), count = carry
+            # (NaN until a point has converged there)
+            (x1, j1, w1), (x2, j2, w2) = carry
             f = _forcing(amplitude, w)
             s = state_scale(sysp, f)
             # (a padded lane repeats its last frequency: w1 == w2 there, no extrapolation)
-            two = (count >= 2) & (w1 != w2)
+            two = jnp.isfinite(w2) & (w1 != w2)
             r = (w - w1) / jnp.where(two, w1 - w2, 1.0)
             r = jnp.where(two & (r <= MAX_EXTRAPOLATION), r, 0.0)
             x = x1 + r * (x1 - x2)
@@ -236,13 +237,12 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
             res, jac = method.solve_chained(sysp, f, x / s, jac / s[:, None] * s[None, :], cfg,
                                             with_floquet=with_floquet)
             ok = res.status == Status.SUCCESS
-            new = ((sysp.to_internal(res.state), s[:, None] * jac / s[None, :], w),
-                   (x1, j1, w1), count + 1)
+            new = ((sysp.to_internal(res.state), s[:, None] * jac / s[None, :], w), (x1, j1, w1))
             return jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, carry), res
 
         j0 = s0[:, None] * method.chain_jacobian(sysp, f0, x0 / s0, cfg) / s0[None, :]
-        first = (x0, j0, ws[0])
-        return jax.lax.scan(step, (first, first, jnp.asarray(0)), ws)[1]
+        first = (x0, j0, jnp.full_like(ws[0], jnp.nan))
+        return jax.lax.scan(step, (first, first), ws)[1]
 
     if _one_lane_at_a_time(system):
         lane = lane_by_lane(lane)
@@ -264,33 +264,11 @@ def _one_lane_at_a_time(system):
     return large_state(system)
 
 
-def _by_chunks(rows, size, progress, solve, ndev=1):
-    """``solve(padded rows, device)`` on the rows of ``rows`` (point indices, one row per
-    lane), ``size // ndev`` rows at a time on each of ``ndev`` devices (``size`` a multiple
-    of ``ndev``), the last part padded by repeating its last row (one compilation serves
-    all); the results of the real rows, concatenated.  The devices work through the parts in
-    turn, each taking the next as soon as it is done (:func:`on_devices`)."""
-    from tqdm.auto import tqdm
-
-    part = size // ndev
-    jobs, keep = [], []
-    for start in range(0, rows.shape[0], part):
-        idx = rows[start:start + part]
-        keep.append(idx.shape[0])
-        if idx.shape[0] < part:
-            idx = np.concatenate([idx, np.repeat(idx[-1:], part - idx.shape[0], axis=0)])
-        jobs.append(idx)
-    with tqdm(total=len(jobs), desc="sweep", disable=not progress) as bar:
-        res = on_devices(solve, jobs, ndev, progress=bar.update)
-    return jax.tree_util.tree_map(lambda *a: np.concatenate(
-        [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
-
-
 def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, progress):
     """The points ``(W, PV)`` solved independently, ``size`` per compiled call; the flat
     results."""
-    return _by_chunks(np.arange(W.shape[0]), size, progress, lambda p, d: _parallel_chunk(
-        system, put(W[p], d), amp, put(PV[p], d), cfg, first, names, floquet), ndev)
+    return by_parts(np.arange(W.shape[0]), size, lambda p, d: _parallel_chunk(
+        system, put(W[p], d), amp, put(PV[p], d), cfg, first, names, floquet), ndev, progress)
 
 
 def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress,
@@ -310,8 +288,9 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
                                        + np.arange(k)[None, :], a + per_design - 1)
                             for a in range(0, total, per_design)])      # (L, k) points
     size = ndev if alone else int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
-    res = _by_chunks(lanes, size, progress, lambda p, d: _chained_chunk(
-        system, put(W[p], d), amp, put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev)
+    res = by_parts(lanes, size, lambda p, d: _chained_chunk(
+        system, put(W[p], d), amp, put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev,
+                   progress)
     # back to one result per point (a lane padded by repeating its last point wrote it twice)
     flat = lanes.reshape(-1)
     where = np.empty(total, dtype=int)

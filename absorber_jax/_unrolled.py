@@ -9,8 +9,10 @@ forcing period of the 44-state building of ``scripts/benchmark_structure.py`` (T
 1e-7, ~620 steps) takes 4.3 ms through diffrax's loop and 2.4 ms unrolled, the same numbers
 to 1e-13.  Unrolled, the program is larger: that period's compilation 0.9 -> 1.9 s, a
 44 × 44 monodromy's 1.9 -> 4.0 s for no gain in run time (its tangents' arithmetic
-dominates), so integrations carrying tangents keep the loop (:func:`looped`), and small
-states, vmapped over many lanes that share the loop's bookkeeping, keep diffrax's solvers.
+dominates), so only a large smooth state's plain integrations use them
+(:func:`absorber_jax._flow._integrate`): integrations carrying tangents keep the loop, and
+small states, vmapped over many lanes that share the loop's bookkeeping, keep diffrax's
+solvers.
 
 The classes here are diffrax's own solvers (same tableau, same interpolation, same step-size
 control, same ``isinstance`` tests) whose ``step`` writes the stages out in straight-line
@@ -96,26 +98,13 @@ Bosh3 = _unrolled(diffrax.Bosh3)
 
 _UNROLLED = {diffrax.Tsit5: Tsit5, diffrax.Dopri5: Dopri5, diffrax.Dopri8: Dopri8,
              diffrax.Bosh3: Bosh3}
-_LOOPED = {v: k for k, v in _UNROLLED.items()}
-
-
-def _as(cls, solver):
-    """A ``cls`` with ``solver``'s options (``scan_kind``)."""
-    return cls(**{f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)
-                  if f.init})
 
 
 def unrolled(solver):
-    """``solver`` with its stages unrolled (diffrax's Tsit5, Dopri5, Dopri8, Bosh3; any other
-    solver as it is)."""
+    """``solver`` with its stages unrolled, its options (``scan_kind``) kept (diffrax's
+    Tsit5, Dopri5, Dopri8, Bosh3; any other solver as it is)."""
     cls = _UNROLLED.get(type(solver))
-    return solver if cls is None else _as(cls, solver)
-
-
-def looped(solver):
-    """``solver`` with diffrax's own stage loop (an unrolled solver's diffrax class; any other
-    solver as it is).  For integrations that carry a Jacobian's tangents: their arithmetic
-    outweighs the loop's bookkeeping (the 44-state building's monodromy: 29 ms either way)
-    while unrolled stages double the compilation (1.9 -> 4.0 s)."""
-    cls = _LOOPED.get(type(solver))
-    return solver if cls is None else _as(cls, solver)
+    if cls is None:
+        return solver
+    return cls(**{f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)
+                  if f.init})

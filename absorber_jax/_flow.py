@@ -43,6 +43,13 @@ class _Config(eqx.Module):
     # derivatives of the flow by sensitivity equations whose steps are controlled on the
     # tangents too (explicit solvers on stiff-ish scenes, see make_config)
     tangent_control: bool = eqx.field(static=True, default=False)
+    # a large state's sensitivities integrated with unrolled stages (absorber_jax._unrolled):
+    # ~30 % faster run, ~2x the compilation; for the integrations a sweep repeats at every
+    # point (Floquet monodromies, see _orbit.floquet_matrix)
+    unroll_tangents: bool = eqx.field(static=True, default=False)
+    # rtol and atol both multiplied by this (a float, or a traced scalar: one compiled
+    # integration run at two tolerances, see _orbit.floquet_matrix)
+    tol_factor: object = 1.0
 
     def over_periods(self, n: int) -> _Config:
         """The configuration of one integration over ``n`` forcing periods."""
@@ -75,7 +82,8 @@ def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
     saveat = diffrax.SaveAt(t1=True) if ts is None else diffrax.SaveAt(ts=ts)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(rate), cfg.solver, t0, t1, None, x0, saveat=saveat,
-        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol, atol=cfg.atol, norm=norm),
+        stepsize_controller=diffrax.PIDController(rtol=cfg.rtol * cfg.tol_factor,
+                                                  atol=cfg.atol * cfg.tol_factor, norm=norm),
         max_steps=cfg.max_steps, throw=False, adjoint=diffrax.ForwardMode(),
     )
     return sol.ys, from_diffrax(sol.result)
@@ -88,16 +96,18 @@ def _integrate(dyn, x0, t0, t1, ts, cfg):
     system, forcing = dyn
     if system.hybrid:
         ys, x, status, _, _ = hybrid_solve(
-            system, forcing, x0, t0, t1, ts, solver=cfg.solver, rtol=cfg.rtol, atol=cfg.atol,
+            system, forcing, x0, t0, t1, ts, solver=cfg.solver, rtol=cfg.rtol * cfg.tol_factor,
+            atol=cfg.atol * cfg.tol_factor,
             max_steps=cfg.max_steps, scale=state_scale(system, forcing),
             max_segments=MAX_SEGMENTS)
         return (x[None] if ts is None else ys), status
     if large_state(system):
         # run lane by lane, a large state's plain integrations pay diffrax's per-stage loop
         # bookkeeping in full (vmapped lanes share it): unrolled stages, the same steps and
-        # numbers (absorber_jax._unrolled).  Only here: the integrations that carry tangents
-        # (_sensitivity_jacobian, flow_along) keep diffrax's loop, which costs them nothing
-        # and compiles in half the time
+        # numbers (absorber_jax._unrolled).  The integrations that carry tangents
+        # (_sensitivity_jacobian, flow_along) keep diffrax's loop (it compiles in half the
+        # time), except the Floquet monodromies a sweep repeats at every point
+        # (cfg.unroll_tangents)
         cfg = dataclasses.replace(cfg, solver=unrolled(cfg.solver))
     return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, t0, t1, ts, cfg)
 
@@ -221,7 +231,7 @@ SENSITIVITY_STATES = 12
 def large_state(system):
     """Whether ``system`` has a large state (>= ``SENSITIVITY_STATES``): derivatives by
     sensitivity equations, integrated lane by lane under vmap (:func:`lane_by_lane`),
-    Floquet monodromies at ``FLOQUET_RTOL``, chained sweep lanes one at a time, a smooth
+    Floquet monodromies coarse first (``_orbit.floquet_matrix``), chained sweep lanes one at a time, a smooth
     system's plain integrations with unrolled stages (:func:`_integrate`)."""
     return system.num_states >= SENSITIVITY_STATES
 
@@ -290,7 +300,8 @@ def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
     state-only solve's: the two differ at the integration tolerance, far below shooting's).
     Returns ``(jac, (ys, status))``, ``jac`` of shape ``ys.shape + (m,)``."""
     dyn, x0 = rebuild(vec)
-    D0 = jax.jacfwd(lambda v: rebuild(v)[1])(vec)                      # (n, m)
+    # one direction per row: (m, n), the layout vmap batches without transposes
+    D0 = jax.jacfwd(lambda v: rebuild(v)[1])(vec).T
 
     def augmented(t, y, a):
         x, D = y
@@ -300,19 +311,24 @@ def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
         # otherwise stall the stage Newton iterations)
         xs = jax.lax.stop_gradient(x)
         _, lin = jax.linearize(lambda x_: _scaled_rate(dyn, t, x_), xs)
-        dD = jax.vmap(lin, in_axes=1, out_axes=1)(D)
+        dD = jax.vmap(lin)(D)
         if dyn_active:
-            dD = dD + jax.jacfwd(lambda v: _scaled_rate(rebuild(v)[0], t, xs))(vec)
+            dD = dD + jax.jacfwd(lambda v: _scaled_rate(rebuild(v)[0], t, xs))(vec).T
         return _scaled_rate(dyn, t, x), dD
 
     if cfg.tangent_control:
         def norm(e):
             # the state with the worst single direction, as when each was integrated alone
             ex, eD = e
-            return jnp.sqrt(0.5 * (jnp.mean(ex**2) + jnp.max(jnp.mean(eD**2, axis=0))))
+            return jnp.sqrt(0.5 * (jnp.mean(ex**2) + jnp.max(jnp.mean(eD**2, axis=-1))))
     else:
         norm = lambda e: optx.rms_norm(e[0])  # noqa: E731
+    if cfg.unroll_tangents and large_state(dyn[0]):
+        # integrated alone (lane by lane), a large state's 44 x 44 sensitivities spend a
+        # third of each step in diffrax's stage loop: unrolled stages (absorber_jax._unrolled)
+        cfg = dataclasses.replace(cfg, solver=unrolled(cfg.solver))
     (ys, dys), status = _diffeqsolve(augmented, (x0, D0), 0.0, t1, ts, cfg, norm=norm)
+    dys = jnp.swapaxes(dys, -1, -2)                                   # (..., n, m)
     # a sensitivity integration that failed gives no derivative (the status flags the point)
     dys = jnp.where((status == Status.SUCCESS) & jnp.isfinite(dys), dys, 0.0)
     return dys, (ys, status)

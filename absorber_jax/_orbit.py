@@ -28,6 +28,7 @@ from ._flow import (
     _flat_inputs,
     _flow,
     accurate_tangents,
+    lane_by_lane,
     large_state,
     period_map,
     state_scale,
@@ -162,12 +163,20 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
 
 
 # The integration tolerance of a large state's monodromy (>= SENSITIVITY_STATES states)
-# need not be tighter than this.  Measured on 16 orbits of the 44-state building of
-# scripts/benchmark_structure.py against tangent-controlled rtol 1e-9: the six largest
-# |multipliers| within 7.5e-7 at 1e-6 (3.2e-8 at 1e-7), for 1.04 s instead of 1.63 s
-# (rtol 1e-7) and 3.92 s (1e-9); 1e-5 is 5e-5 off.  (Steps controlled on the state alone
-# at 1e-5 gave a spurious |mu| = 1.6e4: the tangent control is what keeps them right.)
+# need not be tighter than this where its multipliers lie well inside the unit circle.
+# Measured on the 44-state building of scripts/benchmark_structure.py (tangent-controlled
+# steps, against rtol 1e-10): at 0.8-1.3 w1 the multipliers above 0.5 within 4e-6 at 1e-5
+# (2.5e-7 at 1e-6, 1.1e-4 at 1e-4), in 300 steps (14 ms with unrolled stages) instead of
+# 480 (21 ms); over the 256-point sweep the largest |multiplier| moved by at most 5.7e-5
+# from its value at 1e-6.  (Steps controlled on the state alone at 1e-5 gave a spurious
+# |mu| = 1.6e4: the tangent control is what keeps them right.)
+FLOQUET_RTOL_COARSE = 1e-5
+# ... and where that coarse monodromy has a multiplier within FLOQUET_MARGIN of the unit
+# circle (where the stability label depends on it), it is recomputed at FLOQUET_RTOL: the
+# six largest |multipliers| of 16 orbits of that building within 7.5e-7 of rtol 1e-9 (3.2e-8
+# at 1e-7).  The margin is ~20x the coarse error measured.
 FLOQUET_RTOL = 1e-6
+FLOQUET_MARGIN = 1e-3
 # ... and that of a small state's (below SENSITIVITY_STATES) need not be tighter than this.
 # Measured on the 256 orbits of the Table 1 sweep (scripts/benchmark_sweep.py) against
 # tangent-controlled rtol 1e-12: every |multiplier| within 5.8e-8 at 1e-8 (1.9e-8 at 1e-9),
@@ -182,20 +191,46 @@ def floquet(system, forcing, x0, n, cfg, n_cap=None):
     return jnp.linalg.eigvals(floquet_matrix(system, forcing, x0, n, cfg, n_cap=n_cap))
 
 
+def _at_least(cfg, tol):
+    return dataclasses.replace(cfg, rtol=max(cfg.rtol, tol), atol=max(cfg.atol, tol))
+
+
 def floquet_matrix(system, forcing, x0, n, cfg, n_cap=None):
     """The monodromy matrix whose eigenvalues :func:`floquet` reports (scaled state; steps
-    controlled on the tangents, tolerance no tighter than ``FLOQUET_RTOL(_SMALL)``)."""
+    controlled on the tangents, tolerance no tighter than ``FLOQUET_RTOL_SMALL`` for a small
+    state; for a large one ``FLOQUET_RTOL_COARSE``, and ``FLOQUET_RTOL`` where a multiplier
+    lies within ``FLOQUET_MARGIN`` of the unit circle)."""
     # the multipliers are not differentiated: no second derivatives of the flow when a
     # design or jax.grad differentiates the orbit
     system, forcing, x0 = _no_gradient((system, forcing, x0))
     # steps controlled on the tangents too: multipliers accurate to ~1e-6, not ~1e-3, across
     # stiff contacts (see accurate_tangents), so that stability labels near bifurcations hold
     cfg = accurate_tangents(cfg)
-    # no tighter than FLOQUET_RTOL (a large state's monodromy costs ~num_states
-    # integrations) or FLOQUET_RTOL_SMALL
-    floor = FLOQUET_RTOL if large_state(system) else FLOQUET_RTOL_SMALL
-    cfg = dataclasses.replace(cfg, rtol=max(cfg.rtol, floor), atol=max(cfg.atol, floor))
-    return monodromy(system, forcing, x0, n, cfg, n_cap=n_cap)
+    if not large_state(system):
+        return monodromy(system, forcing, x0, n, _at_least(cfg, FLOQUET_RTOL_SMALL),
+                         n_cap=n_cap)
+
+    # a large state's monodromy costs ~num_states integrations: coarse first, refined only
+    # where the label needs it; one compiled integration for both (its tolerance a traced
+    # factor), run one lane at a time under vmap, so that the refinement runs only in the
+    # lanes that need it
+    fine = dataclasses.replace(_at_least(cfg, FLOQUET_RTOL), unroll_tangents=True)
+    loose = max(fine.rtol, FLOQUET_RTOL_COARSE) / fine.rtol
+
+    def two_tier(system, forcing, x0, n):
+        def body(c):
+            k, _, _ = c
+            M = monodromy(system, forcing, x0, n, dataclasses.replace(
+                fine, tol_factor=jnp.where(k == 0, loose, 1.0)), n_cap=n_cap)
+            near = jnp.abs(jnp.max(jnp.abs(jnp.linalg.eigvals(M))) - 1.0) < FLOQUET_MARGIN
+            return k + 1, M, ~near | (loose == 1.0)
+
+        m = x0.shape[0]
+        return jax.lax.while_loop(lambda c: (c[0] < 2) & ~c[2], body,
+                                  (jnp.asarray(0), jnp.zeros((m, m), x0.dtype),
+                                   jnp.asarray(False)))[1]
+
+    return lane_by_lane(two_tier)(system, forcing, x0, n)
 
 
 def monodromy(system, forcing, x0, n, cfg, n_cap=None):

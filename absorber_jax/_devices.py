@@ -24,9 +24,8 @@ def use_cpu_cores(n=None):
     then); it raises ``RuntimeError`` after.  Returns the number of CPU devices.
 
     Measured on 2 cores (``scripts/benchmark_structure.py``: the 20-storey building with two
-    friction dampers, 256 frequencies): 15.9 s on one device, 8.6 s on two (11.7 s and
-    6.2 s since large states' stages are unrolled, their stragglers resumed one per call
-    and chained starts extrapolated)."""
+    friction dampers, 256 frequencies): 15.9 s on one device, 8.6 s on two (8.1 s and
+    4.3 s with the later changes to large states' integrations and Floquet monodromies)."""
     if n is None:
         n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:

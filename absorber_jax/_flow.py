@@ -231,8 +231,9 @@ SENSITIVITY_STATES = 12
 def large_state(system):
     """Whether ``system`` has a large state (>= ``SENSITIVITY_STATES``): derivatives by
     sensitivity equations, integrated lane by lane under vmap (:func:`lane_by_lane`),
-    Floquet monodromies coarse first (``_orbit.floquet_matrix``), chained sweep lanes one at a time, a smooth
-    system's plain integrations with unrolled stages (:func:`_integrate`)."""
+    Floquet monodromies coarse first (``_orbit.floquet_matrix``), chained sweep lanes one
+    at a time, a smooth system's plain integrations with unrolled stages
+    (:func:`_integrate`)."""
     return system.num_states >= SENSITIVITY_STATES
 
 

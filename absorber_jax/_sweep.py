@@ -354,7 +354,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
       (extrapolated from the last two) with the previous Floquet monodromies as its
       Jacobian: one monodromy per point (measured on the 44-state building of
       ``scripts/benchmark_structure.py``: 62 → 34 s for 256 frequencies; 15.5 s with large
-      states' lanes one at a time, 6.2 s on two cores with the later changes).
+      states' lanes one at a time, 4.3 s on two cores with the later changes).
     - the remaining keywords as in :func:`steady_state`.
 
     ```python

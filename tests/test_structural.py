@@ -212,6 +212,11 @@ def test_large_state_monodromy_is_refined_only_near_the_unit_circle():
     FLOQUET_RTOL where one lies within FLOQUET_MARGIN of it (the stability label depends on
     it there): the 3-storey building with three TMDs as given (|mu| <= 0.74 at 24 rad/s),
     and with its damping cut 1000x (|mu| = 0.9997); both against exp(A T)."""
+    for light in (False, True):
+        _check_two_tiers(light)
+
+
+def _check_two_tiers(light):
     import dataclasses
 
     from scipy.linalg import expm
@@ -226,30 +231,29 @@ def test_large_state_monodromy_is_refined_only_near_the_unit_circle():
     )
 
     w = 24.0
-    for light in (False, True):
-        ray = (1e-3, 1e-7) if light else RAYLEIGH
-        b = aj.shear_building(MASSES, STOREYS, rayleigh=ray)
-        els = [aj.TunedMassDamper(d, m=m, k=k, c=c * (1e-3 if light else 1.0))
-               for d, m, k, c in TMDS]
-        sysm = aj.StructuralSystem(b, els, load=dict(zip(b.dof_names, MASSES)),
-                                   observe="floor3")
-        f = aj.Harmonic(amplitude=1.0, omega=w)
-        x0 = jnp.zeros(sysm.num_states)
-        cfg = make_config(sysm, f, rtol=1e-7, atol=1e-7)
-        got = np.asarray(floquet_matrix(sysm, f, x0, 1, cfg))
-        at = lambda tol: np.asarray(monodromy(sysm, f, x0, 1, dataclasses.replace(  # noqa: E731
-            accurate_tangents(cfg), rtol=tol, atol=tol)))
-        coarse, fine = at(FLOQUET_RTOL_COARSE), at(FLOQUET_RTOL)
-        A = np.asarray(jax.jacfwd(lambda s: sysm.vector_field(0.0, s, f))(x0))
-        sc = np.asarray(state_scale(sysm, f))
-        exact = expm(A * 2 * np.pi / w) * sc[None, :] / sc[:, None]     # scaled coordinates
-        near = abs(np.abs(np.linalg.eigvals(exact)).max() - 1.0) < FLOQUET_MARGIN
-        assert near == light
-        assert np.abs(coarse - fine).max() > 1e-7              # the two tiers differ here
-        np.testing.assert_allclose(got, fine if light else coarse, rtol=0, atol=1e-10)
-        # the multipliers: coarse within 8e-5 (the largest 8e-9), fine within 8e-6 (5e-10)
-        _assert_multipliers(np.linalg.eigvals(got), np.linalg.eigvals(exact))
+    b = aj.shear_building(MASSES, STOREYS, rayleigh=(1e-3, 1e-7) if light else RAYLEIGH)
+    els = [aj.TunedMassDamper(d, m=m, k=k, c=c * (1e-3 if light else 1.0))
+           for d, m, k, c in TMDS]
+    sysm = aj.StructuralSystem(b, els, load=dict(zip(b.dof_names, MASSES)), observe="floor3")
+    f = aj.Harmonic(amplitude=1.0, omega=w)
+    x0 = jnp.zeros(sysm.num_states)
+    cfg = make_config(sysm, f, rtol=1e-7, atol=1e-7)
+    got = np.asarray(floquet_matrix(sysm, f, x0, 1, cfg))
 
+    def at(tol):
+        return np.asarray(monodromy(sysm, f, x0, 1, dataclasses.replace(
+            accurate_tangents(cfg), rtol=tol, atol=tol)))
+
+    coarse, fine = at(FLOQUET_RTOL_COARSE), at(FLOQUET_RTOL)
+    A = np.asarray(jax.jacfwd(lambda s: sysm.vector_field(0.0, s, f))(x0))
+    sc = np.asarray(state_scale(sysm, f))
+    exact = expm(A * 2 * np.pi / w) * sc[None, :] / sc[:, None]     # scaled coordinates
+    near = abs(np.abs(np.linalg.eigvals(exact)).max() - 1.0) < FLOQUET_MARGIN
+    assert near == light
+    assert np.abs(coarse - fine).max() > 1e-7              # the two tiers differ here
+    np.testing.assert_allclose(got, fine if light else coarse, rtol=0, atol=1e-10)
+    # the multipliers: coarse within 8e-5 (the largest 8e-9), fine within 8e-6 (5e-10)
+    _assert_multipliers(np.linalg.eigvals(got), np.linalg.eigvals(exact))
 
 def _beam_with_tip_damper(N, law=None):
     beam = aj.cantilever_beam(8, length=1.0, EI=2.0e2, rho_A=1.0, modal_damping=0.01)

@@ -205,55 +205,79 @@ def _assert_multipliers(got, exact):
     assert abs(np.abs(got).max() - np.abs(exact).max()) < 1e-6, (got, exact)
 
 
-
 def test_large_state_monodromy_is_refined_only_near_the_unit_circle():
     """A large state's Floquet monodromy (_orbit.floquet_matrix) comes at
     FLOQUET_RTOL_COARSE where every multiplier lies well inside the unit circle, and at
     FLOQUET_RTOL where one lies within FLOQUET_MARGIN of it (the stability label depends on
     it there): the 3-storey building with three TMDs as given (|mu| <= 0.74 at 24 rad/s),
-    and with its damping cut 1000x (|mu| = 0.9997); both against exp(A T)."""
-    for light in (False, True):
-        _check_two_tiers(light)
+    and with its damping cut 1000x (|mu| = 0.9997); both against exp(A T); each lane of a
+    vmapped call on its own tier; no tiers when the tolerance asked is already coarse."""
+    from absorber_jax._flow import make_config
+    from absorber_jax._orbit import FLOQUET_RTOL_COARSE, floquet_matrix
+
+    got = {light: _check_two_tiers(light) for light in (False, True)}
+    # vmapped over the two buildings (one lane each): each lane on its own tier
+    systems = [_tiers_building(light)[0] for light in (False, True)]
+    f, x0 = _tiers_building(False)[1:]
+    cfg = make_config(systems[0], f, rtol=1e-7, atol=1e-7)
+    both = jax.tree_util.tree_map(lambda a, b: jnp.stack([a, b]), *systems)
+    batched = np.asarray(jax.vmap(lambda s: floquet_matrix(s, f, x0, 1, cfg))(both))
+    for i, light in enumerate((False, True)):
+        np.testing.assert_allclose(batched[i], got[light], rtol=0, atol=1e-10)
+    # a tolerance at the coarse one or looser: that tolerance throughout, near or not
+    loose = make_config(systems[1], f, rtol=FLOQUET_RTOL_COARSE, atol=FLOQUET_RTOL_COARSE)
+    np.testing.assert_allclose(np.asarray(floquet_matrix(systems[1], f, x0, 1, loose)),
+                               _monodromy_at(systems[1], f, x0, loose, FLOQUET_RTOL_COARSE),
+                               rtol=0, atol=1e-10)
+
+
+def _tiers_building(light, w=24.0):
+    b = aj.shear_building(MASSES, STOREYS, rayleigh=(1e-3, 1e-7) if light else RAYLEIGH)
+    els = [aj.TunedMassDamper(d, m=m, k=k, c=c * (1e-3 if light else 1.0))
+           for d, m, k, c in TMDS]
+    sysm = aj.StructuralSystem(b, els, load=dict(zip(b.dof_names, MASSES)), observe="floor3")
+    return sysm, aj.Harmonic(amplitude=1.0, omega=w), jnp.zeros(sysm.num_states)
+
+
+def _monodromy_at(sysm, f, x0, cfg, tol):
+    import dataclasses
+
+    from absorber_jax._flow import accurate_tangents
+    from absorber_jax._orbit import monodromy
+
+    return np.asarray(monodromy(sysm, f, x0, 1, dataclasses.replace(
+        accurate_tangents(cfg), rtol=tol, atol=tol)))
 
 
 def _check_two_tiers(light):
-    import dataclasses
-
     from scipy.linalg import expm
 
-    from absorber_jax._flow import accurate_tangents, make_config, state_scale
+    from absorber_jax._flow import make_config, state_scale
     from absorber_jax._orbit import (
         FLOQUET_MARGIN,
         FLOQUET_RTOL,
         FLOQUET_RTOL_COARSE,
         floquet_matrix,
-        monodromy,
     )
 
-    w = 24.0
-    b = aj.shear_building(MASSES, STOREYS, rayleigh=(1e-3, 1e-7) if light else RAYLEIGH)
-    els = [aj.TunedMassDamper(d, m=m, k=k, c=c * (1e-3 if light else 1.0))
-           for d, m, k, c in TMDS]
-    sysm = aj.StructuralSystem(b, els, load=dict(zip(b.dof_names, MASSES)), observe="floor3")
-    f = aj.Harmonic(amplitude=1.0, omega=w)
-    x0 = jnp.zeros(sysm.num_states)
+    sysm, f, x0 = _tiers_building(light)
     cfg = make_config(sysm, f, rtol=1e-7, atol=1e-7)
     got = np.asarray(floquet_matrix(sysm, f, x0, 1, cfg))
-
-    def at(tol):
-        return np.asarray(monodromy(sysm, f, x0, 1, dataclasses.replace(
-            accurate_tangents(cfg), rtol=tol, atol=tol)))
-
-    coarse, fine = at(FLOQUET_RTOL_COARSE), at(FLOQUET_RTOL)
+    coarse = _monodromy_at(sysm, f, x0, cfg, FLOQUET_RTOL_COARSE)
+    fine = _monodromy_at(sysm, f, x0, cfg, FLOQUET_RTOL)
     A = np.asarray(jax.jacfwd(lambda s: sysm.vector_field(0.0, s, f))(x0))
     sc = np.asarray(state_scale(sysm, f))
-    exact = expm(A * 2 * np.pi / w) * sc[None, :] / sc[:, None]     # scaled coordinates
-    near = abs(np.abs(np.linalg.eigvals(exact)).max() - 1.0) < FLOQUET_MARGIN
+    exact = expm(A * 2 * np.pi / f.omega) * sc[None, :] / sc[:, None]   # scaled coordinates
+    near = np.any(np.abs(np.abs(np.linalg.eigvals(exact)) - 1.0) < FLOQUET_MARGIN)
     assert near == light
     assert np.abs(coarse - fine).max() > 1e-7              # the two tiers differ here
     np.testing.assert_allclose(got, fine if light else coarse, rtol=0, atol=1e-10)
+    # the sweeps' unrolled stages: the same steps and numbers
+    np.testing.assert_allclose(np.asarray(floquet_matrix(sysm, f, x0, 1, cfg, unroll=True)),
+                               got, rtol=0, atol=1e-10)
     # the multipliers: coarse within 8e-5 (the largest 8e-9), fine within 8e-6 (5e-10)
     _assert_multipliers(np.linalg.eigvals(got), np.linalg.eigvals(exact))
+    return got
 
 def _beam_with_tip_damper(N, law=None):
     beam = aj.cantilever_beam(8, length=1.0, EI=2.0e2, rho_A=1.0, modal_damping=0.01)

@@ -918,10 +918,10 @@ def _corrector_many(prob, s0, z_pred, t_prev, patient, tol, newton_steps):
 def _run_batched(gens, prob, method, lanes=None):
     """Serve many branches' corrector requests together: each round, one request from
     every branch still going, solved in one vmapped call of ``lanes`` lanes (default one
-    per branch) or, once no more than a half or a quarter of that is pending, of that many
-    (padded by repeating a request: the ends of branches do not recompile; callers that
-    batch several phases give them all the same ``lanes``: one compilation per batch size,
-    ~5 s each on the hard-contact scenes).  With several local devices a batch of at least
+    per branch) or, once no more than a quarter of that is pending, of that many (padded by
+    repeating a request: the ends of branches do not recompile; callers that batch several
+    phases give them all the same ``lanes``: one compilation per batch size, ~5 s each on
+    the hard-contact scenes, per device).  With several local devices a batch of at least
     two lanes per device is split into equal parts, one vmapped call per device
     (:func:`by_parts`; each part size compiles once per device): the Kelvin–Voigt band
     of scripts/benchmark_hard_contacts.py 75 -> 67.5 s on two CPU devices."""
@@ -929,8 +929,11 @@ def _run_batched(gens, prob, method, lanes=None):
     # the few branches snaking through folds, or locating bifurcations, go on for many more
     # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
     # on 60 rounds of 4 branches padded to 16 before the smaller batches): the batch is
-    # halved, down to a quarter, while no more than that is pending
-    sizes = [lanes] + ([lanes // 2, lanes // 4] if lanes >= 8 else [])
+    # cut to a quarter while no more than that is pending.  A half size in between cost
+    # more compilation than it saved (the Kelvin-Voigt band on 2 CPU devices, same session:
+    # sizes 16/8/4 65.6 s, 16/4 60.9 and 62.1 s, 16/2 65.0 s, 16 alone 77.4 s, the same
+    # 606 points; the Hertz band 123.9 s and 123.1 s)
+    sizes = [lanes] + ([lanes // 4] if lanes >= 8 else [])
     ndev = jax.local_device_count()
     results = [None] * len(gens)
     pending = {}

@@ -324,9 +324,10 @@ def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
             return jnp.sqrt(0.5 * (jnp.mean(ex**2) + jnp.max(jnp.mean(eD**2, axis=-1))))
     else:
         norm = lambda e: optx.rms_norm(e[0])  # noqa: E731
-    if cfg.unroll_tangents and large_state(dyn[0]):
+    if cfg.unroll_tangents:
         # integrated alone (lane by lane), a large state's 44 x 44 sensitivities spend a
-        # third of each step in diffrax's stage loop: unrolled stages (absorber_jax._unrolled)
+        # third of each step in diffrax's stage loop: unrolled stages (absorber_jax._unrolled;
+        # _orbit.floquet_matrix asks for them only for large states)
         cfg = dataclasses.replace(cfg, solver=unrolled(cfg.solver))
     (ys, dys), status = _diffeqsolve(augmented, (x0, D0), 0.0, t1, ts, cfg, norm=norm)
     dys = jnp.swapaxes(dys, -1, -2)                                   # (..., n, m)

@@ -193,7 +193,7 @@ FLOQUET_RTOL_SMALL = 1e-8
 def floquet(system, forcing, x0, n, cfg, n_cap=None):
     """Floquet multipliers (eigenvalues of the monodromy matrix, by forward-mode AD); ``n``
     may be traced when ``n_cap`` (its static upper bound) is given."""
-    return jnp.linalg.eigvals(floquet_matrix(system, forcing, x0, n, cfg, n_cap=n_cap))
+    return floquet_matrix(system, forcing, x0, n, cfg, n_cap=n_cap)[1]
 
 
 def _at_least(cfg, tol):
@@ -201,12 +201,13 @@ def _at_least(cfg, tol):
 
 
 def floquet_matrix(system, forcing, x0, n, cfg, n_cap=None, *, unroll=False):
-    """The monodromy matrix whose eigenvalues :func:`floquet` reports (scaled state; steps
-    controlled on the tangents, tolerance no tighter than ``FLOQUET_RTOL_SMALL`` for a small
-    state; for a large one ``FLOQUET_RTOL_COARSE``, and ``FLOQUET_RTOL`` where a multiplier
-    lies within ``FLOQUET_MARGIN`` of the unit circle).  ``unroll``: a large state's
-    tangents integrated with unrolled stages (~30 % faster, twice the compilation: for the
-    sweeps, which compute one monodromy per point)."""
+    """``(M, multipliers)``: the monodromy matrix (scaled state) and its eigenvalues, which
+    :func:`floquet` reports.  Steps controlled on the tangents, tolerance no tighter than
+    ``FLOQUET_RTOL_SMALL`` for a small state; for a large one ``FLOQUET_RTOL_COARSE``, and
+    ``FLOQUET_RTOL`` where a multiplier lies within ``FLOQUET_MARGIN`` of the unit circle
+    (decided on the eigenvalues, which are returned rather than computed again).
+    ``unroll``: a large state's tangents integrated with unrolled stages (~30 % faster,
+    twice the compilation: for the sweeps, which compute one monodromy per point)."""
     # the multipliers are not differentiated: no second derivatives of the flow when a
     # design or jax.grad differentiates the orbit
     system, forcing, x0 = _no_gradient((system, forcing, x0))
@@ -214,13 +215,14 @@ def floquet_matrix(system, forcing, x0, n, cfg, n_cap=None, *, unroll=False):
     # stiff contacts (see accurate_tangents), so that stability labels near bifurcations hold
     cfg = accurate_tangents(cfg)
     if not large_state(system):
-        return monodromy(system, forcing, x0, n, _at_least(cfg, FLOQUET_RTOL_SMALL),
-                         n_cap=n_cap)
+        M = monodromy(system, forcing, x0, n, _at_least(cfg, FLOQUET_RTOL_SMALL), n_cap=n_cap)
+        return M, jnp.linalg.eigvals(M)
     fine = dataclasses.replace(_at_least(cfg, FLOQUET_RTOL), unroll_tangents=unroll)
     coarse = _at_least(fine, FLOQUET_RTOL_COARSE)
     factors = (coarse.rtol / fine.rtol, coarse.atol / fine.atol)
     if factors == (1.0, 1.0):
-        return monodromy(system, forcing, x0, n, fine, n_cap=n_cap)
+        M = monodromy(system, forcing, x0, n, fine, n_cap=n_cap)
+        return M, jnp.linalg.eigvals(M)
 
     # a large state's monodromy costs ~num_states integrations: coarse first, refined only
     # where the label needs it; one compiled integration for both (its tolerances scaled by
@@ -228,19 +230,19 @@ def floquet_matrix(system, forcing, x0, n, cfg, n_cap=None, *, unroll=False):
     # in the lanes that need it (vmapped, both passes would run in every lane)
     def two_tier(system, forcing, x0, n):
         def body(c):
-            k, _, _ = c
+            k = c[0]
             first = k == 0
             M = monodromy(system, forcing, x0, n, dataclasses.replace(
                 fine, tol_factors=tuple(jnp.where(first, f, 1.0) for f in factors)),
                 n_cap=n_cap)
-            mu = jnp.abs(jnp.linalg.eigvals(M))
-            near = jnp.any(jnp.abs(mu - 1.0) < FLOQUET_MARGIN)
-            return k + 1, M, ~(first & near)
+            mu = jnp.linalg.eigvals(M)
+            near = jnp.any(jnp.abs(jnp.abs(mu) - 1.0) < FLOQUET_MARGIN)
+            return k + 1, (M, mu), ~(first & near)
 
         m = x0.shape[0]
+        start = (jnp.zeros((m, m), x0.dtype), jnp.zeros((m,), jnp.result_type(x0.dtype, 1j)))
         return jax.lax.while_loop(lambda c: ~c[2], body,
-                                  (jnp.asarray(0), jnp.zeros((m, m), x0.dtype),
-                                   jnp.asarray(False)))[1]
+                                  (jnp.asarray(0), start, jnp.asarray(False)))[1]
 
     return lane_by_lane(two_tier)(system, forcing, x0, n)
 

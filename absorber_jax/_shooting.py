@@ -216,9 +216,10 @@ def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=4
     x_guess = jax.lax.stop_gradient(x_guess)
     H0 = jnp.linalg.pinv(jacobian - jnp.eye(x_guess.shape[0]))
     x, k = _broyden(residual, x_guess, H0, (system, forcing), 0.1 * tol, steps)
-    mono = floquet_matrix(system, forcing, x, n, cfg, unroll=True) if with_floquet else None
+    mono, mult = (floquet_matrix(system, forcing, x, n, cfg, unroll=True) if with_floquet
+                  else (None, None))
     res = _finish(system, forcing, x, n, cfg, None, None, k, with_floquet, n_cap=n, tol=tol,
-                  multipliers=None if mono is None else jnp.linalg.eigvals(mono))
+                  multipliers=mult)
     if mono is None:
         return res, jacobian
     return res, jnp.where(res.status == Status.SUCCESS, mono, jacobian)

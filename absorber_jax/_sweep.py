@@ -129,7 +129,7 @@ def _retry_batch(system):
     return 1 if large_state(system) else RETRY_BATCH
 
 
-def _in_batches(res, bad, solve, desc, progress, size=RETRY_BATCH):
+def _in_batches(res, bad, solve, desc, progress, size):
     """Apply ``solve(padded indices)`` to the points ``bad`` of a flat (point-axis) result in
     fixed batches of ``size`` (one compilation) and write the results back; the iteration
     counts add up."""

@@ -221,12 +221,12 @@ def test_large_state_monodromy_is_refined_only_near_the_unit_circle():
     f, x0 = _tiers_building(False)[1:]
     cfg = make_config(systems[0], f, rtol=1e-7, atol=1e-7)
     both = jax.tree_util.tree_map(lambda a, b: jnp.stack([a, b]), *systems)
-    batched = np.asarray(jax.vmap(lambda s: floquet_matrix(s, f, x0, 1, cfg))(both))
+    batched = np.asarray(jax.vmap(lambda s: floquet_matrix(s, f, x0, 1, cfg)[0])(both))
     for i, light in enumerate((False, True)):
         np.testing.assert_allclose(batched[i], got[light], rtol=0, atol=1e-10)
     # a tolerance at the coarse one or looser: that tolerance throughout, near or not
     loose = make_config(systems[1], f, rtol=FLOQUET_RTOL_COARSE, atol=FLOQUET_RTOL_COARSE)
-    np.testing.assert_allclose(np.asarray(floquet_matrix(systems[1], f, x0, 1, loose)),
+    np.testing.assert_allclose(np.asarray(floquet_matrix(systems[1], f, x0, 1, loose)[0]),
                                _monodromy_at(systems[1], f, x0, loose, FLOQUET_RTOL_COARSE),
                                rtol=0, atol=1e-10)
 
@@ -262,7 +262,7 @@ def _check_two_tiers(light):
 
     sysm, f, x0 = _tiers_building(light)
     cfg = make_config(sysm, f, rtol=1e-7, atol=1e-7)
-    got = np.asarray(floquet_matrix(sysm, f, x0, 1, cfg))
+    got = np.asarray(floquet_matrix(sysm, f, x0, 1, cfg)[0])
     coarse = _monodromy_at(sysm, f, x0, cfg, FLOQUET_RTOL_COARSE)
     fine = _monodromy_at(sysm, f, x0, cfg, FLOQUET_RTOL)
     A = np.asarray(jax.jacfwd(lambda s: sysm.vector_field(0.0, s, f))(x0))
@@ -273,7 +273,7 @@ def _check_two_tiers(light):
     assert np.abs(coarse - fine).max() > 1e-7              # the two tiers differ here
     np.testing.assert_allclose(got, fine if light else coarse, rtol=0, atol=1e-10)
     # the sweeps' unrolled stages: the same steps and numbers
-    np.testing.assert_allclose(np.asarray(floquet_matrix(sysm, f, x0, 1, cfg, unroll=True)),
+    np.testing.assert_allclose(np.asarray(floquet_matrix(sysm, f, x0, 1, cfg, unroll=True)[0]),
                                got, rtol=0, atol=1e-10)
     # the multipliers: coarse within 8e-5 (the largest 8e-9), fine within 8e-6 (5e-10)
     _assert_multipliers(np.linalg.eigvals(got), np.linalg.eigvals(exact))

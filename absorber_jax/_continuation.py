@@ -53,7 +53,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, require_x64
-from ._devices import by_parts, put
+from ._devices import lanes_on_devices, one_blas_thread
 from ._flow import _Config, _flow, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic
 from ._orbit import SteadyResults, SteadyState, _finish, read_through
@@ -301,7 +301,6 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     iterate's Jacobian gives the tangent and the multipliers with no further solve, and one
     integrator is compiled instead of two."""
     prob = dataclasses.replace(prob, cfg=accurate_tangents(prob.cfg))
-    J0, r0, st0, bad0 = _evaluate(prob, z_pred)
 
     def newton_step(z, J, r):
         A = jnp.concatenate([J, t_prev[None]], axis=0)
@@ -312,23 +311,28 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
         return ~c[-1]
 
     def body(c):
+        # ``k`` Newton steps taken before this evaluation; the first pass evaluates the
+        # predictor itself (its step is zero: ``J`` and ``r`` start at zero), so the
+        # Jacobian's integration is traced and compiled once, not twice
         z, J, r, st, bad, k, res_prev, done = c
         z = z + newton_step(z, J, r)
         J, r, st, bad = _evaluate(prob, z)
-        k = k + 1
         res = jnp.max(jnp.abs(r))
         # a residual that has not halved after the second step is outside Newton's basin:
         # stop there (the step is halved and tried again) rather than spend the budget, which
         # a batch of branches (band_continuation) would wait for; not on a first orbit
         # (``patient``), whose guess may be far
         stalled = ~patient & (k >= 2) & (res > 0.5 * res_prev)
-        done = bad | (res <= tol) | (k >= newton_steps) | stalled
-        return z, J, r, st, bad, k, res, done
+        # at least one Newton step (a predictor within tolerance would otherwise be kept
+        # with an error of order tol)
+        done = bad | ((k >= 1) & (res <= tol)) | (k >= newton_steps) | stalled
+        return z, J, r, st, bad, k + 1, res, done
 
-    # at least one Newton step (a predictor within tolerance would otherwise be kept with an
-    # error of order tol)
+    n = z_pred.shape[0] - 1
     z, J, r, st, bad, k, _, _ = jax.lax.while_loop(
-        cond, body, (z_pred, J0, r0, st0, bad0, jnp.asarray(0), jnp.max(jnp.abs(r0)), bad0))
+        cond, body, (z_pred, jnp.zeros((n, n + 1)), jnp.zeros(n), jnp.asarray(Status.SUCCESS),
+                     jnp.asarray(False), jnp.asarray(0), jnp.asarray(jnp.inf), jnp.asarray(False)))
+    k = k - 1
     res = jnp.max(jnp.abs(r))
     ok = ~bad & (res <= tol)
     # converged: one more Newton step with the Jacobian at hand, not evaluated again (the
@@ -342,7 +346,6 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
                        jnp.where(bad, Status.NONFINITE,
                                  jnp.where(ok, Status.SUCCESS, Status.NO_CONVERGENCE)))
     t = _tangent(J, t_prev)
-    n = z.shape[0] - 1
     mult = jnp.linalg.eigvals(J[:, :n] + jnp.eye(n))
     sysp, forcp = prob.at(z[-1])
     sc = state_scale(sysp, forcp)
@@ -906,13 +909,17 @@ def _run(gen):
 
 
 @eqx.filter_jit
-def _corrector_many(prob, s0, z_pred, t_prev, patient, tol, newton_steps):
+def _corrector_many(prob, s0, z_pred, t_prev, patient, tol, newton_steps, ndev=1):
     """:func:`_corrector` vmapped over the branches' state scales, predictors, hyperplanes
-    and patience (the system, forcing and parameter scale shared)."""
-    def one(s, z, t, pa):
-        return _corrector(dataclasses.replace(prob, s0=s), z, t, tol, newton_steps, pa)
+    and patience (the system, forcing and parameter scale shared), the lanes split over
+    ``ndev`` local devices (:func:`lanes_on_devices`)."""
+    def many(prob, s0, z_pred, t_prev, patient):
+        def one(s, z, t, pa):
+            return _corrector(dataclasses.replace(prob, s0=s), z, t, tol, newton_steps, pa)
 
-    return jax.vmap(one)(s0, z_pred, t_prev, patient)
+        return jax.vmap(one)(s0, z_pred, t_prev, patient)
+
+    return lanes_on_devices(many, prob, s0, z_pred, t_prev, patient, ndev=ndev)
 
 
 def _run_batched(gens, prob, method, lanes=None):
@@ -921,10 +928,12 @@ def _run_batched(gens, prob, method, lanes=None):
     per branch) or, once no more than a quarter of that is pending, of that many (padded by
     repeating a request: the ends of branches do not recompile; callers that batch several
     phases give them all the same ``lanes``: one compilation per batch size, ~5 s each on
-    the hard-contact scenes, per device).  With several local devices a batch of at least
-    two lanes per device is split into equal parts, one vmapped call per device
-    (:func:`by_parts`; each part size compiles once per device): the Kelvin–Voigt band
-    of scripts/benchmark_hard_contacts.py 75 -> 67.5 s on two CPU devices."""
+    the hard-contact scenes).  With several local devices a batch of at least two lanes
+    per device is split into equal parts, one per device, in one SPMD program
+    (:func:`lanes_on_devices`): the Kelvin–Voigt band of scripts/benchmark_hard_contacts.py
+    75 -> 67.5 s on two CPU devices with a program per device (session n), 59 -> 47.8 s
+    with one SPMD program and the corrector's Jacobian integration traced once (session p:
+    its first 16-lane call 10.8 -> 6.6 s)."""
     lanes = len(gens) if lanes is None else lanes
     # the few branches snaking through folds, or locating bifurcations, go on for many more
     # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
@@ -949,14 +958,11 @@ def _run_batched(gens, prob, method, lanes=None):
         s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
         zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
         pa = np.asarray([bool(r[3]) for r in reqs])
-        # a batch of several lanes per device is split over the devices (see by_parts)
+        # a batch of several lanes per device is split over the devices
         parts = ndev if size % ndev == 0 and size >= 2 * ndev else 1
-
-        def solve(j, device, arrays=(s0, zp, tp, pa)):
-            return _corrector_many(prob, *(put(a[j], device) for a in arrays),
-                                   method.tol, method.newton_steps)
-
-        z, t, ss = by_parts(np.arange(size), size, solve, parts)
+        with one_blas_thread(parts):
+            z, t, ss = jax.tree_util.tree_map(np.asarray, _corrector_many(
+                prob, s0, zp, tp, pa, method.tol, method.newton_steps, parts))
         for j, i in enumerate(idx):
             point = pending[i][0].point(z[j], t[j], jax.tree_util.tree_map(lambda a, j=j: a[j], ss))
             try:

@@ -13,8 +13,10 @@ import os
 import queue
 import threading
 
+import equinox as eqx
 import jax
 import numpy as np
+from jax.sharding import Mesh, PartitionSpec
 
 
 def use_cpu_cores(n=None):
@@ -72,8 +74,6 @@ def on_devices(solve, jobs, ndev, progress=None):
             if progress is not None:
                 progress()
         return out
-    from threadpoolctl import threadpool_limits
-
     devices = jax.local_devices()[:ndev]
     todo = queue.SimpleQueue()
     for i in range(len(jobs)):
@@ -97,7 +97,7 @@ def on_devices(solve, jobs, ndev, progress=None):
                 with lock:
                     progress()
 
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread(ndev):
         threads = [threading.Thread(target=work, args=(d,), daemon=True) for d in devices]
         for t in threads:
             t.start()
@@ -129,3 +129,37 @@ def by_parts(rows, size, solve, ndev, progress=False):
         res = on_devices(solve, jobs, ndev, progress=bar.update)
     return jax.tree_util.tree_map(lambda *a: np.concatenate(
         [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
+
+
+def lanes_on_devices(f, shared, *lanes, ndev):
+    """``f(shared, *lanes)`` (``f`` maps over the lanes: their leading axis) with the lanes
+    split into ``ndev`` equal parts, one on each of the first ``ndev`` local devices, inside
+    a jitted function: one SPMD program (``jax.shard_map``; no communication between the
+    parts, each device runs its own loops to their own ends), compiled and traced once for
+    all the devices, where :func:`by_parts` compiles a program per device, each traced
+    again under the interpreter lock (the hard Kelvin–Voigt scene's batched continuation
+    corrector, 16 lanes on two CPU devices: 10.9 s -> 8.1 s to the first result, 1.04 ->
+    0.84 s a call after).  ``shared`` (a pytree, its arrays replicated) is the same for all
+    lanes; the number of lanes must be a multiple of ``ndev``.  Call it under
+    :func:`one_blas_thread`."""
+    if ndev <= 1:
+        return f(shared, *lanes)
+    mesh = Mesh(np.array(jax.local_devices()[:ndev]), ("lanes",))
+    dynamic, static = eqx.partition(shared, eqx.is_array)
+    split = PartitionSpec("lanes")
+    g = jax.shard_map(lambda d, *a: f(eqx.combine(d, static), *a), mesh=mesh,
+                      in_specs=(PartitionSpec(),) + (split,) * len(lanes), out_specs=split,
+                      check_vma=False)
+    return g(dynamic, *lanes)
+
+
+def one_blas_thread(ndev):
+    """A context holding BLAS (OpenBLAS, under XLA's LAPACK calls) to one thread while
+    ``ndev > 1`` devices run (see :func:`on_devices`); a no-op on one device."""
+    import contextlib
+
+    if ndev <= 1:
+        return contextlib.nullcontext()
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")

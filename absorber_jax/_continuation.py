@@ -55,8 +55,8 @@ from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, require_x64
 from ._devices import lanes_on_devices, one_blas_thread
 from ._flow import _Config, _flow, accurate_tangents, make_config, period_map, state_scale
-from ._forcing import Harmonic
-from ._orbit import SteadyResults, SteadyState, _finish, read_through
+from ._forcing import Harmonic, PhasedHarmonic
+from ._orbit import SAMPLES_PER_PERIOD, SteadyResults, SteadyState, _finish, read_through
 from ._params import replace_params, resolve
 from ._shooting import Shooting
 from ._status import Status, describe
@@ -79,6 +79,18 @@ CLOSE_RETURN_PERIODS, CLOSE_RETURN_SKIP, CLOSE_RETURNS = 240, 40, 3
 # band_continuation's fill passes start new branches in the parts of the band no branch
 # reached that are wider than this fraction of it
 GAP = 2e-3
+# a first orbit's Newton (from a far guess) is given up once its residual has grown this
+# many times over the least so far: on the hard-contact scenes of
+# scripts/benchmark_hard_contacts.py, Newton from the guesses that fail diverges from its
+# first steps (the Hertz band's fill passes: residuals from ~1 to 1e2-1e6 in 12 steps, each
+# step dearer as the iterate's motion grows, 47 s of its 102 s), while the guesses that
+# succeed decrease the residual at every step
+PATIENT_GROWTH = 10.0
+# a branch's Poincaré section moves (Driver.resection) where the clearance to the nearest
+# contact wall there has fallen below RESECTION of the best on the orbit, and not where
+# the tangent's parameter component (which orients the tangent in the new section) is below
+# RESECTION_TANGENT
+RESECTION, RESECTION_TANGENT = 0.5, 1e-3
 # a sharp turn of the tangent is accepted as a corner once the step is reduced this much
 CORNER_REDUCTION = 16.0
 
@@ -218,7 +230,9 @@ read_through(Branch, [f.name for f in dataclasses.fields(SteadyState)
 
 
 class _Problem(eqx.Module):
-    """The shooting residual in the continuation's scaled unknowns ``z = (x, p)``."""
+    """The shooting residual in the continuation's scaled unknowns ``z = (x, p)``, ``x``
+    the orbit's state on the Poincaré section ``section`` samples (of
+    ``SAMPLES_PER_PERIOD`` a forcing period) after ``t = 0``."""
 
     system: AbstractSystem
     forcing: Harmonic
@@ -227,15 +241,23 @@ class _Problem(eqx.Module):
     cfg: _Config
     parameter: str = eqx.field(static=True)
     n: int = eqx.field(static=True)
+    section: jax.Array = eqx.field(default_factory=lambda: jnp.asarray(0))
 
     def at(self, p):
         """(system, forcing) at the scaled parameter ``p``."""
         return _set_value(self.system, self.forcing, self.parameter, p * self.pscale)
 
+    def in_section(self, p):
+        """(system, forcing seen from the section) at the scaled parameter ``p``."""
+        sysp, forcp = self.at(p)
+        phase = 2 * jnp.pi * self.section / SAMPLES_PER_PERIOD
+        return sysp, PhasedHarmonic(amplitude=forcp.amplitude, omega=forcp.omega, phase=phase)
+
     def _in_flow(self, z):
-        """(system, forcing) at ``z``'s parameter, the flow's state scale there and ``z``'s
-        state in it (flow states ``y`` are ``y * sc / s0`` in the unknowns)."""
-        sysp, forcp = self.at(z[-1])
+        """(system, forcing from the section) at ``z``'s parameter, the flow's state scale
+        there and ``z``'s state in it (flow states ``y`` are ``y * sc / s0`` in the
+        unknowns)."""
+        sysp, forcp = self.in_section(z[-1])
         sc = state_scale(sysp, forcp)
         return sysp, forcp, sc, z[:-1] * self.s0 / sc
 
@@ -314,24 +336,31 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
         # ``k`` Newton steps taken before this evaluation; the first pass evaluates the
         # predictor itself (its step is zero: ``J`` and ``r`` start at zero), so the
         # Jacobian's integration is traced and compiled once, not twice
-        z, J, r, st, bad, k, res_prev, done = c
+        z, J, r, st, bad, k, res_prev, res_prev2, res_min, done = c
         z = z + newton_step(z, J, r)
         J, r, st, bad = _evaluate(prob, z)
         res = jnp.max(jnp.abs(r))
-        # a residual that has not halved after the second step is outside Newton's basin:
+        # a residual that has not halved over the last two steps is outside Newton's basin:
         # stop there (the step is halved and tried again) rather than spend the budget, which
-        # a batch of branches (band_continuation) would wait for; not on a first orbit
-        # (``patient``), whose guess may be far
-        stalled = ~patient & (k >= 2) & (res > 0.5 * res_prev)
+        # a batch of branches (band_continuation) would wait for.  Over two steps, not one:
+        # on strongly unstable orbits the residual often grows at the second step and then
+        # falls quadratically (the Kelvin-Voigt scene of scripts/benchmark_hard_contacts.py
+        # at 28.47 rad/s, |mu| = 50: 4e-3, 1.8e-4, 3.2e-4, 2.9e-6, 1.3e-8), and a one-step
+        # test there halved the arclength step every other point.  A first orbit
+        # (``patient``: its guess may be far) is given up only where the residual has grown
+        # PATIENT_GROWTH times over the least so far
+        stalled = jnp.where(patient, res > PATIENT_GROWTH * res_min,
+                            (k >= 2) & (res > 0.5 * res_prev2))
         # at least one Newton step (a predictor within tolerance would otherwise be kept
         # with an error of order tol)
         done = bad | ((k >= 1) & (res <= tol)) | (k >= newton_steps) | stalled
-        return z, J, r, st, bad, k + 1, res, done
+        return z, J, r, st, bad, k + 1, res, res_prev, jnp.minimum(res, res_min), done
 
     n = z_pred.shape[0] - 1
-    z, J, r, st, bad, k, _, _ = jax.lax.while_loop(
+    inf = jnp.asarray(jnp.inf)
+    z, J, r, st, bad, k, _, _, _, _ = jax.lax.while_loop(
         cond, body, (z_pred, jnp.zeros((n, n + 1)), jnp.zeros(n), jnp.asarray(Status.SUCCESS),
-                     jnp.asarray(False), jnp.asarray(0), jnp.asarray(jnp.inf), jnp.asarray(False)))
+                     jnp.asarray(False), jnp.asarray(0), inf, inf, inf, jnp.asarray(False)))
     k = k - 1
     res = jnp.max(jnp.abs(r))
     ok = ~bad & (res <= tol)
@@ -347,11 +376,11 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
                                  jnp.where(ok, Status.SUCCESS, Status.NO_CONVERGENCE)))
     t = _tangent(J, t_prev)
     mult = jnp.linalg.eigvals(J[:, :n] + jnp.eye(n))
-    sysp, forcp = prob.at(z[-1])
+    sysp, forcp = prob.in_section(z[-1])
     sc = state_scale(sysp, forcp)
-    ss = _finish(sysp, forcp, z[:-1] * prob.s0 / sc, prob.n, prob.cfg, status, res, k,
-                 n_cap=prob.n, multipliers=mult)
-    return z, t, ss
+    ss, sec = _finish(sysp, forcp, z[:-1] * prob.s0 / sc, prob.n, prob.cfg, status, res, k,
+                      n_cap=prob.n, multipliers=mult, section=prob.section)
+    return z, t, ss, sec
 
 
 @eqx.filter_jit
@@ -436,12 +465,39 @@ class _Driver:
                                       self.method.tol, self.method.newton_steps,
                                       jnp.asarray(patient)))
 
-    def point(self, z, t, ss):
-        """A corrector's output as a branch point (numpy)."""
-        ss = jax.tree_util.tree_map(np.asarray, ss)
+    def point(self, z, t, ss, sec):
+        """A corrector's output as a branch point (numpy): ``xi`` its internal state on the
+        driver's section, ``x0`` at ``t = 0``, ``sec`` its :class:`~absorber_jax._orbit.Section`."""
+        ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
         z = np.asarray(z)
-        return dict(z=z, t=np.asarray(t), ss=ss, xi=z[:-1] * np.asarray(self.prob.s0),
-                    mult=np.asarray(ss.multipliers), ok=int(ss.status) == Status.SUCCESS)
+        return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, section=int(self.prob.section),
+                    xi=z[:-1] * np.asarray(self.prob.s0),
+                    x0=sec.at_zero, mult=np.asarray(ss.multipliers),
+                    ok=int(ss.status) == Status.SUCCESS)
+
+    def resection(self, point):
+        """Move the branch's Poincaré section to where the orbit at ``point`` flies farthest
+        from the contact walls, once the clearance at the current one has fallen below
+        ``RESECTION`` of that (a generator of one corrector request, see :func:`_follow`):
+        the point's state there, corrected at its parameter value, gives the unknowns and the
+        tangent in the new section (oriented by the parameter's direction, so not near a
+        fold: ``|t_p| >= RESECTION_TANGENT``).  Returns the point in the new unknowns, or
+        ``point`` where nothing is to be moved or the correction failed."""
+        sec, tp = point["sec"], float(point["t"][-1])
+        if not (sec.best_clearance > 0 and sec.clearance < RESECTION * sec.best_clearance
+                and abs(tp) >= RESECTION_TANGENT):
+            return point
+        old = self.prob
+        self.prob = dataclasses.replace(old, section=jnp.asarray(int(sec.best)))
+        sc = np.asarray(_scale_at(self.prob, jnp.asarray(point["z"][-1])))
+        z = np.append(sec.best_state * sc / np.asarray(self.prob.s0), point["z"][-1])
+        e = np.zeros_like(z)
+        e[-1] = np.sign(tp)
+        c = yield (self, z, e, False)
+        if c["ok"]:
+            return self.rescale(c)
+        self.prob = old
+        return point
 
     def rescale(self, point):
         """Rescale the state unknowns to the orbit at ``point`` (its state over the state
@@ -837,7 +893,7 @@ def _follow(drv, first, rejoin, locate, bar):
     each and returns ``(points, bifurcations, termination)`` (:func:`_run` serves it one
     request at a time, :func:`_run_batched` many branches' requests in one vmapped call)."""
     method = drv.method
-    points = [drv.rescale(first) if first["ok"] else first]
+    points = [(yield from drv.resection(drv.rescale(first))) if first["ok"] else first]
     bifs = []
     termination = "start_failed" if not first["ok"] else None
     h = method.step
@@ -881,15 +937,15 @@ def _follow(drv, first, rejoin, locate, bar):
         points.append(b)
         bar.update(1)
         bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
-        if rejoin is not None and rejoin(b["xi"], b["z"][-1]):
+        if rejoin is not None and rejoin(b["x0"], b["z"][-1]):
             termination = "rejoined"
             break
         s_now = np.asarray(drv.prob.s0)
-        back = np.append((b["xi"] - points[0]["xi"]) / s_now, b["z"][-1] - points[0]["z"][-1])
+        back = np.append((b["x0"] - points[0]["x0"]) / s_now, b["z"][-1] - points[0]["z"][-1])
         if len(points) > 10 and np.linalg.norm(back) < 0.5 * h:
             termination = "closed"
             break
-        points[-1] = drv.rescale(b)
+        points[-1] = yield from drv.resection(drv.rescale(b))
         it = int(b["ss"].iterations)
         if it <= 3:
             h = min(1.5 * h, method.max_step)
@@ -909,17 +965,18 @@ def _run(gen):
 
 
 @eqx.filter_jit
-def _corrector_many(prob, s0, z_pred, t_prev, patient, tol, newton_steps, ndev=1):
-    """:func:`_corrector` vmapped over the branches' state scales, predictors, hyperplanes
-    and patience (the system, forcing and parameter scale shared), the lanes split over
-    ``ndev`` local devices (:func:`lanes_on_devices`)."""
-    def many(prob, s0, z_pred, t_prev, patient):
-        def one(s, z, t, pa):
-            return _corrector(dataclasses.replace(prob, s0=s), z, t, tol, newton_steps, pa)
+def _corrector_many(prob, s0, section, z_pred, t_prev, patient, tol, newton_steps, ndev=1):
+    """:func:`_corrector` vmapped over the branches' state scales, sections, predictors,
+    hyperplanes and patience (the system, forcing and parameter scale shared), the lanes
+    split over ``ndev`` local devices (:func:`lanes_on_devices`)."""
+    def many(prob, *lanes):
+        def one(s, j, z, t, pa):
+            return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol,
+                              newton_steps, pa)
 
-        return jax.vmap(one)(s0, z_pred, t_prev, patient)
+        return jax.vmap(one)(*lanes)
 
-    return lanes_on_devices(many, prob, s0, z_pred, t_prev, patient, ndev=ndev)
+    return lanes_on_devices(many, prob, s0, section, z_pred, t_prev, patient, ndev=ndev)
 
 
 def _run_batched(gens, prob, method, lanes=None):
@@ -956,15 +1013,16 @@ def _run_batched(gens, prob, method, lanes=None):
         size = min(z for z in sizes if z >= len(idx))
         reqs = [pending[i] for i in idx] + [pending[idx[0]]] * (size - len(idx))
         s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
+        sec = np.stack([np.asarray(r[0].prob.section) for r in reqs])
         zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
         pa = np.asarray([bool(r[3]) for r in reqs])
         # a batch of several lanes per device is split over the devices
         parts = ndev if size % ndev == 0 and size >= 2 * ndev else 1
         with one_blas_thread(parts):
-            z, t, ss = jax.tree_util.tree_map(np.asarray, _corrector_many(
-                prob, s0, zp, tp, pa, method.tol, method.newton_steps, parts))
+            out = jax.tree_util.tree_map(np.asarray, _corrector_many(
+                prob, s0, sec, zp, tp, pa, method.tol, method.newton_steps, parts))
         for j, i in enumerate(idx):
-            point = pending[i][0].point(z[j], t[j], jax.tree_util.tree_map(lambda a, j=j: a[j], ss))
+            point = pending[i][0].point(*jax.tree_util.tree_map(lambda a, j=j: a[j], out))
             try:
                 pending[i] = gens[i].send(point)
             except StopIteration as stop:

@@ -49,6 +49,19 @@ class Harmonic(AbstractForcing):
         return self.amplitude * jnp.sin(self.omega * t)
 
 
+class PhasedHarmonic(AbstractForcing):
+    r"""$F(t) = F_0 \sin(\omega t + \varphi)$: a :class:`Harmonic` seen from a Poincaré
+    section at forcing phase ``phase`` $\varphi$ [rad] (internal: continuation takes its
+    section where the absorbers fly free, see ``_continuation``)."""
+
+    amplitude: object
+    omega: object
+    phase: object
+
+    def __call__(self, t):
+        return self.amplitude * jnp.sin(self.omega * t + self.phase)
+
+
 class RampedHarmonic(AbstractForcing):
     r"""Harmonic force whose amplitude grows linearly from 0 to ``amplitude`` over
     ``ramp_time`` and then stays constant:

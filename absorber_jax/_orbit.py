@@ -143,7 +143,8 @@ def sample_orbit(system, forcing, x0, n, cfg, n_cap=1, *, with_end=False):
 def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     """Amplitudes over one response period ``nT`` starting from scaled state ``x0``
     (``n`` may be traced; ``n_cap`` is its static upper bound), the integrator's status, the
-    largest stroke per absorber and the scaled state at ``nT``."""
+    largest stroke per absorber, the scaled state at ``nT`` and the internal states sampled
+    (:func:`sample_orbit`)."""
     s, ts, st, end = sample_orbit(system, forcing, x0, n, cfg, n_cap, with_end=True)
     phase = jnp.exp(-1j * forcing.omega * ts)
 
@@ -159,7 +160,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
                  absorber_rms=most(u_rms), impacts=impacts.astype(s.dtype),
                  dof_amplitude=d_amp, dof_rms=d_rms, dof_harmonic=d_harm)
-    return stats, st, jnp.max(jnp.abs(u), axis=0), end
+    return stats, st, jnp.max(jnp.abs(u), axis=0), end, s
 
 
 # The integration tolerance of a large state's monodromy (>= SENSITIVITY_STATES states)
@@ -285,14 +286,20 @@ def _implicit_orbit_jvp(primals, tangents, *, cfg, n_cap):
 
 
 def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
-            n_cap=1, multipliers=None, tol=None):
+            n_cap=1, multipliers=None, tol=None, section=None):
     """The :class:`SteadyState` of the scaled orbit state ``x`` (statistics, multipliers,
     stability); ``multipliers`` when the caller already has them (continuation: from the
     Jacobian of its last corrector step).  With ``tol`` (shooting), ``residual`` and
     ``status`` are not given but measured here: ``max |Φ_nT(x) - x|`` from the statistics'
-    own integration, SUCCESS when within ``tol``."""
+    own integration, SUCCESS when within ``tol``.
+
+    With ``section`` (continuation; ``n`` static, ``n_cap = n``): ``x`` lies on the Poincaré
+    section ``section`` samples after ``t = 0`` (``forcing`` is the
+    :class:`~absorber_jax._forcing.PhasedHarmonic` of that section); the state reported is
+    the orbit's at ``t = 0`` (a sample of the statistics' integration), and the result is
+    ``(steady, Section)`` (:func:`section_of`)."""
     scale = state_scale(system, forcing)
-    stats, st2, stroke_max, end = orbit_statistics(system, forcing, x, n, cfg, n_cap)
+    stats, st2, stroke_max, end, samples = orbit_statistics(system, forcing, x, n, cfg, n_cap)
     if tol is not None:
         residual = jnp.max(jnp.abs(end - x))
         status = jnp.where(st2 != Status.SUCCESS, st2,
@@ -317,6 +324,44 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
     # a failed point (or multipliers not computed) is never called stable
     stable = (jnp.all((jnp.abs(mult) <= 1.0 + 1e-6) | structural) & (status == Status.SUCCESS)
               & jnp.all(jnp.isfinite(mult)))
-    return SteadyState(**stats, period_multiple=jnp.asarray(n), state=system.to_public(x * scale),
-                       multipliers=mult, stable=stable, status=status, residual=residual,
-                       iterations=jnp.asarray(iterations))
+    at_zero = x * scale if section is None else samples[(-section) % samples.shape[0]]
+    steady = SteadyState(**stats, period_multiple=jnp.asarray(n),
+                         state=system.to_public(at_zero), multipliers=mult, stable=stable,
+                         status=status, residual=residual, iterations=jnp.asarray(iterations))
+    if section is None:
+        return steady
+    return steady, section_of(system, samples, section, scale, at_zero)
+
+
+class Section(eqx.Module):
+    """Where an orbit sampled from a Poincaré section lies against its contact walls
+    (:func:`section_of`): ``clearance`` at the section and ``best_clearance`` at the best
+    sample (the least distance [m] to any wall, ``inf`` without walls), the ``best`` sample's
+    index from ``t = 0`` and its scaled state, and the orbit's internal state at ``t = 0``."""
+
+    clearance: jax.Array
+    best_clearance: jax.Array
+    best: jax.Array
+    best_state: jax.Array
+    at_zero: jax.Array
+
+
+def section_of(system, samples, section, scale, at_zero):
+    """The :class:`Section` of an orbit's internal ``samples`` taken from the section
+    ``section`` samples after ``t = 0``.
+
+    Shooting from a section where a stiff contact is closed is badly conditioned: the state
+    there moves with the impact's timing, within the short contact, so Newton's basin
+    shrinks to nothing (the Kelvin–Voigt 2e4 scene of scripts/benchmark_hard_contacts.py at
+    28.50 rad/s, |μ| = 50: from a perturbation of 1e-3 of the orbit's scaled state, Newton
+    diverges with the section in contact and converges quadratically (1e-1, 1e-4, 4e-7)
+    where the absorber flies free).  The best sample is the one farthest from every wall."""
+    pen = jax.vmap(system.penetrations)(samples)                      # (N, walls)
+    if pen.shape[1] == 0:
+        clear = jnp.full(samples.shape[:1], jnp.inf, samples.dtype)
+    else:
+        clear = -jnp.max(pen, axis=1)
+    k = jnp.argmax(clear)
+    return Section(clearance=clear[0], best_clearance=clear[k],
+                   best=(section + k) % samples.shape[0], best_state=samples[k] / scale,
+                   at_zero=at_zero)

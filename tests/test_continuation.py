@@ -213,6 +213,68 @@ def test_multipliers_at_a_branch_point_equal_steady_state():
     check(aj.replace_params(system, {"contact1.gap": g}), f, bg, j, g=g)
 
 
+def test_a_section_moved_off_time_zero_reports_the_same_orbit():
+    """The orbit statistics from a Poincaré section a quarter period after t = 0 (what
+    continuation uses once the section at t = 0 falls inside a contact): the state reported
+    is the orbit's at t = 0 (1e-7 of its size), the amplitudes are the section-0 ones
+    (1e-9), and the section's clearances are the distances to the stop computed from the
+    samples independently."""
+    import jax.numpy as jnp
+
+    from absorber_jax._flow import _flow, make_config, state_scale
+    from absorber_jax._forcing import PhasedHarmonic
+    from absorber_jax._orbit import SAMPLES_PER_PERIOD, _finish
+
+    system = hardening()
+    f = aj.Harmonic(amplitude=HARD["F0"], omega=1.1)
+    ss = aj.steady_state(system, f)
+    assert int(ss.status) == 0
+    cfg = make_config(system, f, None, 1e-10, 1e-10)
+    sc = np.asarray(state_scale(system, f))
+    x0 = np.asarray(system.to_internal(jnp.asarray(ss.state))) / sc
+    j = SAMPLES_PER_PERIOD // 4
+    ts = np.arange(SAMPLES_PER_PERIOD + 1) * (f.period / SAMPLES_PER_PERIOD)
+    ys, _ = _flow((system, f), jnp.asarray(x0), float(ts[-1]), jnp.asarray(ts), cfg=cfg)
+    ys = np.asarray(ys)
+    fj = PhasedHarmonic(amplitude=f.amplitude, omega=f.omega,
+                        phase=2 * np.pi * j / SAMPLES_PER_PERIOD)
+    out, sec = _finish(system, fj, jnp.asarray(ys[j]), 1, cfg, 0, 0.0, 0, n_cap=1,
+                       multipliers=jnp.asarray(ss.multipliers), section=jnp.asarray(j))
+    size = np.max(np.abs(ss.state))
+    assert np.max(np.abs(np.asarray(out.state) - np.asarray(ss.state))) < 1e-7 * size
+    assert abs(float(out.amplitude) - float(ss.amplitude)) < 1e-9 * float(ss.amplitude)
+    clear = np.array([-float(np.max(np.asarray(system.penetrations(jnp.asarray(y * sc)))))
+                      for y in ys[:-1]])
+    assert abs(float(sec.clearance) - clear[j]) < 1e-9
+    assert abs(float(sec.best_clearance) - clear.max()) < 1e-9 * HARD["g"]
+    assert clear[int(sec.best)] == pytest.approx(clear.max(), abs=1e-9)
+
+
+def test_hard_contact_branch_takes_its_section_where_the_absorber_flies_free():
+    """The hard Kelvin-Voigt impact absorber (issue 12's scene) near 28.4 rad/s: its
+    period-1 orbit is in contact at t = 0, where the state moves with the impact's timing
+    and Newton's basin shrinks (with the section kept at t = 0 the same call's corrector
+    takes 5 iterations a point past 28.42 rad/s, the arclength step cannot grow, and the
+    up half-branch ends its 40 points at 28.49 rad/s).  The section moves to where the
+    absorber flies farthest from the walls: 2-3 iterations a point, the half-branch passes
+    28.6 rad/s (to the fold at 28.68) within its 40 points, every point converged, and the
+    states it reports (the orbits' at t = 0, see
+    test_a_section_moved_off_time_zero_reports_the_same_orbit) are in contact at some."""
+    import jax.numpy as jnp
+
+    system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3,
+                               contact=aj.KelvinVoigt(stiffness=2e4, damping=2.0))
+    f = aj.Harmonic(amplitude=3.0, omega=28.0)
+    brs = aj.band_continuation(system, f, "omega", bounds=(20.0, 45.0), starts=[28.0],
+                               fill=0, method=aj.PseudoArclength(max_points=40), rtol=1e-7,
+                               atol=1e-7)
+    up = brs[1]
+    assert np.all(up.ok) and up.values.max() > 28.6, (up.termination, up.values.max())
+    pen = [float(np.max(np.asarray(system.penetrations(system.to_internal(jnp.asarray(x))))))
+           for x in up.states]
+    assert max(pen) > 0.1 * 2e-3, max(pen)
+
+
 @pytest.fixture(scope="module")
 def nlvib_branch():
     sysm = nlvib03()

@@ -41,6 +41,7 @@ Analysis* (Springer, 2010), ch. 7 (periodic orbits by shooting).
 
 from __future__ import annotations
 
+import copy
 import csv
 import dataclasses
 import json
@@ -78,7 +79,7 @@ START_SCALES = (1.0, 0.3, 0.1)
 CLOSE_RETURN_PERIODS, CLOSE_RETURN_SKIP, CLOSE_RETURNS = 240, 40, 3
 # band_continuation's fill passes start new branches in the parts of the band no branch
 # reached that are wider than this fraction of it
-GAP = 2e-3
+GAP = 1e-4
 # a first orbit's Newton (from a far guess) is given up once its residual has grown this
 # many times over the least so far: on the hard-contact scenes of
 # scripts/benchmark_hard_contacts.py, Newton from the guesses that fail diverges from its
@@ -707,19 +708,31 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
     with _bar(method.max_points * lanes, parameter, progress) as bar:
         out += _band_pass(base, method, values, [(lo, hi)] * len(values), lanes, locate, bar)
         for _ in range(fill):
-            # as many as the compiled batches hold (their two half-branches each)
-            gaps = _gaps(out, lo, hi)[:max(1, lanes // (4 if lanes >= 8 else 2))]
-            if not gaps:
+            values, limits = _fill_starts(_gaps(out, lo, hi), lanes // 2)
+            if not values.size:
                 break
-            bar.total += method.max_points * 2 * len(gaps)
-            out += _band_pass(base, method, np.array([0.5 * (g0 + g1) for g0, g1 in gaps]),
-                              gaps, lanes, locate, bar)
+            bar.total += method.max_points * 2 * values.size
+            out += _band_pass(base, method, values, limits, lanes, locate, bar, linear=False)
+        # the bifurcations of all the half-branches located together (each a few corrector
+        # solves in turn: one after the other on its branch, the Hertz band's main pass
+        # took 91 rounds of its batch, 37 bifurcations of 1-19 solves each)
+        todo = [(i, j) for i, ((_, bifs, _), _, _) in enumerate(out)
+                for j, b in enumerate(bifs) if isinstance(b, tuple)]
+        found = _run_batched([_bifurcation(*out[i][0][1][j]) for i, j in todo], base, method,
+                             lanes)
+        for (i, j), b in zip(todo, found):
+            out[i][0][1][j] = b
     return tuple(_branch(*r, drv, v, system) for r, drv, v in out)
 
 
-def _band_pass(base, method, values, limits, lanes, locate, bar):
+def _band_pass(base, method, values, limits, lanes, locate, bar, linear=True):
     """Half-branches from the start ``values`` (start ``i`` followed within ``limits[i]``),
-    all together; returns ``[(result, driver, start value)]``, two per start (down, up)."""
+    all together; returns ``[(result, driver, start value)]``, two per start (down, up).
+    ``linear``: first guesses from the scaled linear response before the close returns
+    (the fill passes go to the close returns at once: their starts lie where the branches
+    snake, near a resonance, where Newton from the linear response fails, and the failures
+    cost the most: the Hertz band's fill passes spent 30 of 93 s on them); a start with no
+    first guess at all (its march failed) is left out."""
     pscale = float(base.pscale)
     starters, guesses = [], []
     for v in values:
@@ -734,16 +747,22 @@ def _band_pass(base, method, values, limits, lanes, locate, bar):
     # trajectory (orbits near an unstable period-n orbit pass close to it again n periods
     # later: the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py has no period-1
     # orbit near its linear response at 30.9 rad/s, where the motion is chaotic)
-    firsts = _run_batched([_first_orbit(d, g, up) for d, g in zip(starters, guesses)], base,
-                          method, lanes)
-    missing = [i for i, f in enumerate(firsts) if not f["ok"]]
+    firsts = [None] * len(values)
+    if linear:
+        firsts = _run_batched([_first_orbit(d, g, up) for d, g in zip(starters, guesses)],
+                              base, method, lanes)
+    missing = [i for i, f in enumerate(firsts) if f is None or not f["ok"]]
     if missing:
-        seeds = _close_returns([starters[i] for i in missing], [guesses[i][0] for i in missing])
+        seeds = _close_returns([starters[i] for i in missing], [guesses[i][0] for i in missing],
+                               lanes=max(lanes // 2, len(missing)))
         seeded = [(i, g) for i, g in zip(missing, seeds) if g]
         again = _run_batched([_first_orbit(starters[i], g, up) for i, g in seeded], base,
                              method, lanes)
         for (i, _), f in zip(seeded, again):
             firsts[i] = f
+    keep = [i for i, f in enumerate(firsts) if f is not None]
+    values, starters, firsts = values[keep], [starters[i] for i in keep], [firsts[i] for i in keep]
+    limits = [limits[i] for i in keep]
     # each start's half-branches are bounded by the nearest starts that have an orbit (every
     # cell between two of them is then followed from both ends; a start without one leaves
     # its cells to its neighbours) and by its limits
@@ -755,9 +774,35 @@ def _band_pass(base, method, values, limits, lanes, locate, bar):
                            (1.0, (v, min(b, above[0]) if above.size else b))):
             drv = _Driver(d.prob, method, cell)
             drivers.append(drv)
-            gens.append(_follow(drv, dict(first, t=sign * first["t"]), None, locate, bar))
+            gens.append(_follow(drv, dict(first, t=sign * first["t"]), None, locate, bar,
+                                defer=True))
     results = _run_batched(gens, base, method, lanes)
     return [(r, drv, float(v)) for r, drv, v in zip(results, drivers, np.repeat(values, 2))]
+
+
+def _fill_starts(gaps, count):
+    """Start values for a fill pass: ``count`` of them (as many as the compiled batch holds,
+    two half-branches each) spread over the ``gaps`` in proportion to their widths, at
+    least one in each of the ``count`` widest, each at the centre of an equal part of its
+    gap; returns ``(values, limits)``, the limits of each start its gap.
+
+    Several starts in a gap rather than one at its centre: where the branches snake, a
+    branch from one start turns at folds inside the gap and leaves parts of it on both
+    sides, and Newton from the marched trajectory's close returns fails at some values and
+    not at others nearby (the Hertz scene of scripts/benchmark_hard_contacts.py, 8 values
+    over 28.30-29.35 rad/s: 4 of 8 first orbits found)."""
+    gaps = gaps[:count]
+    if not gaps:
+        return np.zeros(0), []
+    widths = np.array([g1 - g0 for g0, g1 in gaps])
+    k = np.ones(len(gaps), int)
+    for _ in range(count - len(gaps)):          # the next start to the gap whose parts
+        k[np.argmax(widths / k)] += 1           # are widest
+    values = [g0 + (m + 0.5) * (g1 - g0) / ki for (g0, g1), ki in zip(gaps, k)
+              for m in range(ki)]
+    limits = [g for g, ki in zip(gaps, k) for _ in range(ki)]
+    order = np.argsort(values)
+    return np.asarray(values)[order], [limits[i] for i in order]
 
 
 def _gaps(out, lo, hi):
@@ -850,7 +895,8 @@ def _first_orbit(drv, guesses, e):
     return point
 
 
-def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETURNS):
+def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETURNS,
+                   lanes=None):
     """First guesses from a trajectory marched from each ``z0`` (one vmapped solve for all
     the drivers): the states after which it came closest to returning ``n`` periods later
     (distances scaled by the spread of the samples; the first ``CLOSE_RETURN_SKIP`` samples
@@ -860,12 +906,24 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     march that never settles, for ``steady_state``'s retry (march from rest, then shoot:
     what :func:`continuation` falls back on); this one keeps several, of period ``n``,
     for all the starts of a band in one program, without marching's settling tests and
-    Floquet solve (``steady_state`` there would compile a program of its own per call)."""
+    Floquet solve (``steady_state`` there would compile a program of its own per call).
+
+    The marches run as ``lanes`` lanes (padded by repeating the first: every call of a band
+    compiles one program), split over the local devices (the Hertz band's fill passes: 8
+    marches 2.4 s on one CPU device)."""
     prob = drivers[0].prob
-    ys, st = _march_many(prob, jnp.stack([d.prob.s0 for d in drivers]),
-                         jnp.asarray(np.stack(z0s)), periods)
+    k = len(drivers)
+    size = max(k, lanes or k)
+    ndev = jax.local_device_count()
+    parts = ndev if size % ndev == 0 and size >= ndev else 1
+    pad = [0] * (size - k)
+    s0 = np.stack([np.asarray(d.prob.s0) for d in drivers])
+    z = np.stack(z0s)
+    with one_blas_thread(parts):
+        ys, st = _march_many(prob, s0[list(range(k)) + pad], z[list(range(k)) + pad],
+                             periods, parts)
     out = []
-    for y, s, z0 in zip(np.asarray(ys)[:, CLOSE_RETURN_SKIP:], np.asarray(st), z0s):
+    for y, s, z0 in zip(np.asarray(ys)[:k, CLOSE_RETURN_SKIP:], np.asarray(st)[:k], z0s):
         picks = []
         if s == Status.SUCCESS and np.all(np.isfinite(y)):
             d = np.max(np.abs(np.diff(y, axis=0)) / (np.std(y, axis=0) + 1e-12), axis=1)
@@ -879,19 +937,27 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
 
 
 @eqx.filter_jit
-def _march_many(prob, s0, z0, periods):
-    """:meth:`_Problem.samples` vmapped over state scales and starting points."""
-    def one(s, z):
-        return dataclasses.replace(prob, s0=s).samples(z, periods)
+def _march_many(prob, s0, z0, periods, ndev=1):
+    """:meth:`_Problem.samples` vmapped over state scales and starting points, the lanes
+    split over ``ndev`` local devices (:func:`lanes_on_devices`)."""
+    def many(prob, s0, z0):
+        def one(s, z):
+            return dataclasses.replace(prob, s0=s).samples(z, periods)
 
-    return jax.vmap(one)(s0, z0)
+        return jax.vmap(one)(s0, z0)
+
+    return lanes_on_devices(many, prob, s0, z0, ndev=ndev)
 
 
-def _follow(drv, first, rejoin, locate, bar):
+def _follow(drv, first, rejoin, locate, bar, defer=False):
     """Follow the branch from the point ``first`` until it ends; a generator: it yields
     corrector requests ``(driver, z_pred, t_prev, patient)``, is sent the point solved for
     each and returns ``(points, bifurcations, termination)`` (:func:`_run` serves it one
-    request at a time, :func:`_run_batched` many branches' requests in one vmapped call)."""
+    request at a time, :func:`_run_batched` many branches' requests in one vmapped call).
+    ``defer``: the bifurcations to locate are returned as the arguments of
+    :func:`_bifurcation` (a copy of the driver as it was), for the caller to locate them
+    all together (:func:`band_continuation`), instead of one after the other here, the
+    branch's other steps waiting."""
     method = drv.method
     points = [(yield from drv.resection(drv.rescale(first))) if first["ok"] else first]
     bifs = []
@@ -932,8 +998,9 @@ def _follow(drv, first, rejoin, locate, bar):
                 b = c
             termination = "bounds"
         for kind in _events(a, b):
-            bifs.append((yield from _bifurcation(drv, kind, a, b, len(points) - 1, locate,
-                                                 float(np.linalg.norm(b["z"] - a["z"])))))
+            args = (copy.copy(drv), kind, a, b, len(points) - 1, locate,
+                    float(np.linalg.norm(b["z"] - a["z"])))
+            bifs.append(args if defer and locate else (yield from _bifurcation(*args)))
         points.append(b)
         bar.update(1)
         bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
@@ -1009,7 +1076,7 @@ def _run_batched(gens, prob, method, lanes=None):
         except StopIteration as stop:       # a branch that asks for nothing (start_failed)
             results[i] = stop.value
     while pending:
-        idx = list(pending)
+        idx = list(pending)[:sizes[0]]          # more requests than lanes: the first ones
         size = min(z for z in sizes if z >= len(idx))
         reqs = [pending[i] for i in idx] + [pending[idx[0]]] * (size - len(idx))
         s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])

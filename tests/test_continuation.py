@@ -133,6 +133,26 @@ def test_band_continuation_fills_the_parts_its_branches_did_not_reach():
             assert abs(b.amplitude[i] - ex["amp"]) < 1e-6 * ex["amp"]
 
 
+def test_fill_starts_spread_over_the_gaps_by_width():
+    """A fill pass's starts: as many as asked, at least one per gap, the rest to the gaps
+    whose parts are widest, each at the centre of an equal part of its gap and bounded by
+    it; with more gaps than starts, the widest ones."""
+    from absorber_jax._continuation import _fill_starts
+
+    gaps = [(28.3, 28.5), (29.1, 29.16), (30.0, 30.03)]       # widest first (as _gaps)
+    values, limits = _fill_starts(gaps, 8)
+    assert values.size == 8 and np.all(np.diff(values) > 0)
+    per = {g: [v for v, lim in zip(values, limits) if lim == g] for g in gaps}
+    assert [len(per[g]) for g in gaps] == [5, 2, 1]
+    for (g0, g1), vs in per.items():
+        k = len(vs)
+        assert np.allclose(vs, g0 + (np.arange(k) + 0.5) * (g1 - g0) / k)
+    values, limits = _fill_starts(gaps, 2)
+    assert limits == [(28.3, 28.5), (29.1, 29.16)]
+    assert np.allclose(values, [28.4, 29.13])
+    assert _fill_starts([], 8)[0].size == 0
+
+
 def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
     """band_continuation's fallback seeds (the closest returns of a marched trajectory):
     marched from the scaled linear response at 1.1 (below the hysteresis band: one stable

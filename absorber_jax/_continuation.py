@@ -1,22 +1,27 @@
 """Pseudo-arclength continuation of periodic orbits, with bifurcation detection and location
 and branch switching at period doublings.
 
-Unknowns ``z = (x, p)``: the orbit's internal state at ``t = 0 mod nT`` divided by the state
-scale at the start (``system.state_scale``, fixed along the branch) and the continuation
-parameter divided by ``|its start value|``.  The residual is the shooting residual of the
-steady-state layer, ``Φ_{nT}(x; p) - x`` (:func:`absorber_jax._flow.period_map`, the same
-flow, tolerances and derivatives as :class:`Shooting`); its Jacobian ``[M - I, ∂Φ/∂p]`` comes
-from one forward-mode pass over ``n + 1`` directions.
+Unknowns ``z = (x, p)``: the orbit's internal state on its Poincaré section (``t = 0 mod nT``
+at first, see Section below) divided by a state scale (``system.state_scale``, rescaled to the
+orbit as it grows) and the continuation parameter divided by ``|its start value|`` (by
+the bounds' larger magnitude in :func:`band_continuation`).  The residual is the shooting
+residual of the steady-state layer, ``Φ_{nT}(x; p) - x``
+(:func:`absorber_jax._flow.period_map`, the same flow, tolerances and derivatives as
+:class:`Shooting`); its Jacobian ``[M - I, ∂Φ/∂p]`` comes from one forward-mode pass over
+``n + 1`` directions.
 
 - **Predictor**: ``z + h t`` along the unit tangent ``t`` (null vector of the Jacobian,
   oriented to continue the previous one).
 - **Corrector**: Newton on ``[Φ - x; t·(z - z_pred)] = 0`` (minimum-norm least-squares
   steps: a floating absorber's orbit family leaves the bordered matrix singular), until the
   scaled residual is below ``tol``, then one more step with the same Jacobian; stopped
-  early where the residual has not halved after the second step.  The Jacobian of the last
+  early where the residual has not halved over the last two steps.  The Jacobian of the last
   corrector iterate gives the next tangent and the Floquet multipliers (eigenvalues of
   ``M``) for free; the point's statistics and stability label are the point solve's
   (:func:`absorber_jax._orbit._finish`).
+- **Section**: the orbit's state is taken on a Poincaré section where the absorbers fly
+  free, moved along the branch when a contact comes near it (:meth:`_Driver.resection`);
+  the states reported are at ``t = 0``.
 - **Step control**: the step grows after quick corrections, shrinks after slow ones, and is
   halved when the corrector fails or the tangent turns by more than ``max_angle``.
 - **Bifurcations** between two accepted points, by sign changes of test functions: fold
@@ -673,12 +678,15 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
       (``CLOSE_RETURNS`` of ``CLOSE_RETURN_PERIODS`` periods: a chaotic motion passes near
       the unstable periodic orbits embedded in it); a start where all fail gives two
       branches that ended ``"start_failed"``, and its neighbours follow its cells.
-    - ``fill``: passes, after the starts' branches end, that start new ones (seeded the same
-      way) at the centres of the parts of the band none reached (the widest: as many per
-      pass as there are starts, half as many from 4 starts on; each followed within its
-      part): branches that fold back on both sides of a part leave it uncovered (the
-      Kelvin–Voigt scene: the branches from 27.8 and 30.9 rad/s turn at folds at 28.35 and
-      29.25 rad/s).
+    - ``fill``: passes, after the starts' branches end, that start new ones in the parts of
+      the band none reached (wider than ``GAP`` of it): as many starts as the batch holds
+      (one per start of the band), spread over those parts by width, each followed within
+      its part, the first orbit from the closest returns of a marched trajectory at once:
+      branches that fold back on both sides of a part leave it uncovered (the Kelvin–Voigt
+      scene: the branches from 27.8 and 30.9 rad/s turn at folds at 28.35 and 29.25 rad/s;
+      2 passes cover both hard-contact scenes' 20–45 rad/s whole).
+
+    The bifurcations of all the half-branches are located together once the passes end.
 
     **Returns** a tuple of :class:`Branch` es, two per start (down, then up), the fill
     passes' after the starts'.

@@ -97,6 +97,10 @@ PATIENT_GROWTH = 10.0
 # the tangent's parameter component (which orients the tangent in the new section) is below
 # RESECTION_TANGENT
 RESECTION, RESECTION_TANGENT = 0.5, 1e-3
+# ... and keeps the point re-solved there only where its state at t = 0 is the point's to
+# this fraction of the orbit's size (at rtol 1e-7 the hard-contact orbits' states at t = 0,
+# mapped from two sections, differ by up to ~1e-2 where the absorber is in contact)
+RESECTION_SAME = 5e-2
 # a sharp turn of the tangent is accepted as a corner once the step is reduced this much
 CORNER_REDUCTION = 16.0
 
@@ -319,7 +323,8 @@ def _tangent(J, t_prev):
 @eqx.filter_jit
 def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     """Newton on ``[Φ(z) - x; t_prev·(z - z_pred)] = 0`` from ``z_pred``; returns the point,
-    the new tangent and the point's :class:`SteadyState` (its iterations included).
+    the new tangent, the point's :class:`SteadyState` (its iterations included) and its
+    :class:`~absorber_jax._orbit.Section`.
 
     Every Jacobian is integrated with steps controlled on the tangents too
     (:func:`absorber_jax._flow.accurate_tangents`): forward mode through steps chosen for the
@@ -476,8 +481,7 @@ class _Driver:
         driver's section, ``x0`` at ``t = 0``, ``sec`` its :class:`~absorber_jax._orbit.Section`."""
         ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
         z = np.asarray(z)
-        return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, section=int(self.prob.section),
-                    xi=z[:-1] * np.asarray(self.prob.s0),
+        return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, xi=z[:-1] * np.asarray(self.prob.s0),
                     x0=sec.at_zero, mult=np.asarray(ss.multipliers),
                     ok=int(ss.status) == Status.SUCCESS)
 
@@ -490,7 +494,8 @@ class _Driver:
         fold: ``|t_p| >= RESECTION_TANGENT``).  Returns the point in the new unknowns, or
         ``point`` where nothing is to be moved or the correction failed."""
         sec, tp = point["sec"], float(point["t"][-1])
-        if not (sec.best_clearance > 0 and sec.clearance < RESECTION * sec.best_clearance
+        if not (sec.least_clearance <= 0 < sec.best_clearance     # an impacting orbit
+                and sec.clearance < RESECTION * sec.best_clearance
                 and abs(tp) >= RESECTION_TANGENT):
             return point
         old = self.prob
@@ -500,7 +505,11 @@ class _Driver:
         e = np.zeros_like(z)
         e[-1] = np.sign(tp)
         c = yield (self, z, e, False)
-        if c["ok"]:
+        size = np.max(np.abs(point["x0"]))
+        if c["ok"] and np.max(np.abs(c["x0"] - point["x0"])) < RESECTION_SAME * size:
+            # the same orbit: its statistics and count as the point's
+            c["ss"] = dataclasses.replace(c["ss"], iterations=point["ss"].iterations,
+                                          residual=point["ss"].residual)
             return self.rescale(c)
         self.prob = old
         return point
@@ -677,7 +686,8 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
       that fails), then from the closest returns of a trajectory marched from it
       (``CLOSE_RETURNS`` of ``CLOSE_RETURN_PERIODS`` periods: a chaotic motion passes near
       the unstable periodic orbits embedded in it); a start where all fail gives two
-      branches that ended ``"start_failed"``, and its neighbours follow its cells.
+      branches that ended ``"start_failed"`` (a fill pass's start, none, where its march
+      failed), and its neighbours follow its cells.
     - ``fill``: passes, after the starts' branches end, that start new ones in the parts of
       the band none reached (wider than ``GAP`` of it): as many starts as the batch holds
       (one per start of the band), spread over those parts by width, each followed within
@@ -689,7 +699,7 @@ def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str 
     The bifurcations of all the half-branches are located together once the passes end.
 
     **Returns** a tuple of :class:`Branch` es, two per start (down, then up), the fill
-    passes' after the starts'.
+    passes' after the starts' (two per fill start that had a first guess).
     """
     method, lo, hi = _check_common(system, forcing, parameter, bounds, method, n,
                                    "band_continuation")
@@ -928,8 +938,8 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     s0 = np.stack([np.asarray(d.prob.s0) for d in drivers])
     z = np.stack(z0s)
     with one_blas_thread(parts):
-        ys, st = _march_many(prob, s0[list(range(k)) + pad], z[list(range(k)) + pad],
-                             periods, parts)
+        ys, st = jax.tree_util.tree_map(np.asarray, _march_many(
+            prob, s0[list(range(k)) + pad], z[list(range(k)) + pad], periods, parts))
     out = []
     for y, s, z0 in zip(np.asarray(ys)[:k, CLOSE_RETURN_SKIP:], np.asarray(st)[:k], z0s):
         picks = []
@@ -1020,7 +1030,9 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
         if len(points) > 10 and np.linalg.norm(back) < 0.5 * h:
             termination = "closed"
             break
-        points[-1] = yield from drv.resection(drv.rescale(b))
+        points[-1] = drv.rescale(b)
+        if termination is None and len(points) < method.max_points:
+            points[-1] = yield from drv.resection(points[-1])
         it = int(b["ss"].iterations)
         if it <= 3:
             h = min(1.5 * h, method.max_step)
@@ -1056,16 +1068,16 @@ def _corrector_many(prob, s0, section, z_pred, t_prev, patient, tol, newton_step
 
 def _run_batched(gens, prob, method, lanes=None):
     """Serve many branches' corrector requests together: each round, one request from
-    every branch still going, solved in one vmapped call of ``lanes`` lanes (default one
-    per branch) or, once no more than a quarter of that is pending, of that many (padded by
-    repeating a request: the ends of branches do not recompile; callers that batch several
-    phases give them all the same ``lanes``: one compilation per batch size, ~5 s each on
-    the hard-contact scenes).  With several local devices a batch of at least two lanes
-    per device is split into equal parts, one per device, in one SPMD program
-    (:func:`lanes_on_devices`): the Kelvin–Voigt band of scripts/benchmark_hard_contacts.py
-    75 -> 67.5 s on two CPU devices with a program per device (session n), 59 -> 47.8 s
-    with one SPMD program and the corrector's Jacobian integration traced once (session p:
-    its first 16-lane call 10.8 -> 6.6 s)."""
+    each of the first ``lanes`` branches still going (default one lane per branch), solved
+    in one vmapped call of ``lanes`` lanes or, once no more than a quarter of that is
+    pending, of that many (padded by repeating a request: the ends of branches do not
+    recompile; callers that batch several phases give them all the same ``lanes``: one
+    compilation per batch size, ~5 s each on the hard-contact scenes).  With several local
+    devices a batch of at least two lanes per device is split into equal parts, one per
+    device, in one SPMD program (:func:`lanes_on_devices`): the Kelvin–Voigt band of
+    scripts/benchmark_hard_contacts.py 75 -> 67.5 s on two CPU devices with a program per
+    device, 59 -> 47.8 s with one SPMD program and the corrector's Jacobian integration
+    traced once (its first 16-lane call 10.8 -> 6.6 s)."""
     lanes = len(gens) if lanes is None else lanes
     # the few branches snaking through folds, or locating bifurcations, go on for many more
     # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
@@ -1146,8 +1158,8 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
                                   np.asarray(Status.NO_CONVERGENCE))
     d_first = float(_defect(prob1, jnp.asarray(first["z"]))) if first["ok"] else 0.0
 
-    def rejoined(xi, p):
-        z = np.append(xi / np.asarray(s0), p)
+    def rejoined(x0, p):
+        z = np.append(x0 / np.asarray(s0), p)
         return float(_defect(prob1, jnp.asarray(z))) < 0.05 * d_first
 
     return first, rejoined

@@ -1,5 +1,5 @@
-"""Running the parts of a sweep on the local devices, and asking JAX for one CPU device per
-core.
+"""Running the parts of a sweep (and the lanes of band_continuation's batches) on the local
+devices, and asking JAX for one CPU device per core.
 
 On a CPU JAX has one device and a sweep's compiled calls run on one core: the point solves
 are long chains of small operations (a 44 × 44 tangent, a period's 600 steps) that XLA does

@@ -300,6 +300,8 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
     ``(steady, Section)`` (:func:`section_of`)."""
     scale = state_scale(system, forcing)
     stats, st2, stroke_max, end, samples = orbit_statistics(system, forcing, x, n, cfg, n_cap)
+    if section is not None and samples.shape[0] != SAMPLES_PER_PERIOD * n:
+        raise ValueError("_finish(section=...) needs a static n equal to n_cap")
     if tol is not None:
         residual = jnp.max(jnp.abs(end - x))
         status = jnp.where(st2 != Status.SUCCESS, st2,
@@ -335,12 +337,14 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
 
 class Section(eqx.Module):
     """Where an orbit sampled from a Poincaré section lies against its contact walls
-    (:func:`section_of`): ``clearance`` at the section and ``best_clearance`` at the best
-    sample (the least distance [m] to any wall, ``inf`` without walls), the ``best`` sample's
-    index from ``t = 0`` and its scaled state, and the orbit's internal state at ``t = 0``."""
+    (:func:`section_of`): ``clearance`` at the section, ``best_clearance`` at the best
+    sample and ``least_clearance`` at the worst (the least distance [m] to any wall,
+    negative in contact, ``inf`` without walls), the ``best`` sample's index from ``t = 0``
+    and its scaled state, and the orbit's internal state at ``t = 0``."""
 
     clearance: jax.Array
     best_clearance: jax.Array
+    least_clearance: jax.Array
     best: jax.Array
     best_state: jax.Array
     at_zero: jax.Array
@@ -362,6 +366,6 @@ def section_of(system, samples, section, scale, at_zero):
     else:
         clear = -jnp.max(pen, axis=1)
     k = jnp.argmax(clear)
-    return Section(clearance=clear[0], best_clearance=clear[k],
+    return Section(clearance=clear[0], best_clearance=clear[k], least_clearance=jnp.min(clear),
                    best=(section + k) % samples.shape[0], best_state=samples[k] / scale,
                    at_zero=at_zero)

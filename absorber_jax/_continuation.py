@@ -59,7 +59,7 @@ import numpy as np
 
 from ._abstract_system import AbstractSystem
 from ._checks import check_scalar, check_state, require_x64
-from ._devices import lanes_on_devices, one_blas_thread
+from ._devices import device_parts, lanes_on_devices, one_blas_thread
 from ._flow import _Config, _flow, accurate_tangents, make_config, period_map, state_scale
 from ._forcing import Harmonic, PhasedHarmonic
 from ._orbit import SAMPLES_PER_PERIOD, SteadyResults, SteadyState, _finish, read_through
@@ -500,8 +500,7 @@ class _Driver:
             return point
         old = self.prob
         self.prob = dataclasses.replace(old, section=jnp.asarray(int(sec.best)))
-        sc = np.asarray(_scale_at(self.prob, jnp.asarray(point["z"][-1])))
-        z = np.append(sec.best_state * sc / np.asarray(self.prob.s0), point["z"][-1])
+        z = np.append(sec.best_state / np.asarray(self.prob.s0), point["z"][-1])
         e = np.zeros_like(z)
         e[-1] = np.sign(tp)
         c = yield (self, z, e, False)
@@ -932,8 +931,7 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     prob = drivers[0].prob
     k = len(drivers)
     size = max(k, lanes or k)
-    ndev = jax.local_device_count()
-    parts = ndev if size % ndev == 0 and size >= ndev else 1
+    parts = device_parts(size)
     pad = [0] * (size - k)
     s0 = np.stack([np.asarray(d.prob.s0) for d in drivers])
     z = np.stack(z0s)
@@ -941,7 +939,7 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
         ys, st = jax.tree_util.tree_map(np.asarray, _march_many(
             prob, s0[list(range(k)) + pad], z[list(range(k)) + pad], periods, parts))
     out = []
-    for y, s, z0 in zip(np.asarray(ys)[:k, CLOSE_RETURN_SKIP:], np.asarray(st)[:k], z0s):
+    for y, s, z0 in zip(ys[:k, CLOSE_RETURN_SKIP:], st[:k], z0s):
         picks = []
         if s == Status.SUCCESS and np.all(np.isfinite(y)):
             d = np.max(np.abs(np.diff(y, axis=0)) / (np.std(y, axis=0) + 1e-12), axis=1)
@@ -958,13 +956,10 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
 def _march_many(prob, s0, z0, periods, ndev=1):
     """:meth:`_Problem.samples` vmapped over state scales and starting points, the lanes
     split over ``ndev`` local devices (:func:`lanes_on_devices`)."""
-    def many(prob, s0, z0):
-        def one(s, z):
-            return dataclasses.replace(prob, s0=s).samples(z, periods)
+    def one(prob, s, z):
+        return dataclasses.replace(prob, s0=s).samples(z, periods)
 
-        return jax.vmap(one)(s0, z0)
-
-    return lanes_on_devices(many, prob, s0, z0, ndev=ndev)
+    return lanes_on_devices(one, prob, s0, z0, ndev=ndev)
 
 
 def _follow(drv, first, rejoin, locate, bar, defer=False):
@@ -1056,14 +1051,11 @@ def _corrector_many(prob, s0, section, z_pred, t_prev, patient, tol, newton_step
     """:func:`_corrector` vmapped over the branches' state scales, sections, predictors,
     hyperplanes and patience (the system, forcing and parameter scale shared), the lanes
     split over ``ndev`` local devices (:func:`lanes_on_devices`)."""
-    def many(prob, *lanes):
-        def one(s, j, z, t, pa):
-            return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol,
-                              newton_steps, pa)
+    def one(prob, s, j, z, t, pa):
+        return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol, newton_steps,
+                          pa)
 
-        return jax.vmap(one)(*lanes)
-
-    return lanes_on_devices(many, prob, s0, section, z_pred, t_prev, patient, ndev=ndev)
+    return lanes_on_devices(one, prob, s0, section, z_pred, t_prev, patient, ndev=ndev)
 
 
 def _run_batched(gens, prob, method, lanes=None):
@@ -1087,7 +1079,6 @@ def _run_batched(gens, prob, method, lanes=None):
     # sizes 16/8/4 65.6 s, 16/4 60.9 and 62.1 s, 16/2 65.0 s, 16 alone 77.4 s, the same
     # 606 points; the Hertz band 123.9 s and 123.1 s)
     sizes = [lanes] + ([lanes // 4] if lanes >= 8 else [])
-    ndev = jax.local_device_count()
     results = [None] * len(gens)
     pending = {}
     for i, g in enumerate(gens):
@@ -1103,8 +1094,7 @@ def _run_batched(gens, prob, method, lanes=None):
         sec = np.stack([np.asarray(r[0].prob.section) for r in reqs])
         zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
         pa = np.asarray([bool(r[3]) for r in reqs])
-        # a batch of several lanes per device is split over the devices
-        parts = ndev if size % ndev == 0 and size >= 2 * ndev else 1
+        parts = device_parts(size)
         with one_blas_thread(parts):
             out = jax.tree_util.tree_map(np.asarray, _corrector_many(
                 prob, s0, sec, zp, tp, pa, method.tol, method.newton_steps, parts))

@@ -9,6 +9,7 @@ then give each device its own parts (:func:`on_devices`) and the cores run them 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import threading
@@ -131,17 +132,20 @@ def by_parts(rows, size, solve, ndev, progress=False):
         [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
 
 
-def lanes_on_devices(f, shared, *lanes, ndev):
-    """``f(shared, *lanes)`` (``f`` maps over the lanes: their leading axis) with the lanes
-    split into ``ndev`` equal parts, one on each of the first ``ndev`` local devices, inside
-    a jitted function: one SPMD program (``jax.shard_map``; no communication between the
+def lanes_on_devices(one, shared, *lanes, ndev):
+    """``one(shared, *lane)`` vmapped over the lanes (the leading axis of ``lanes``) and the
+    lanes split into ``ndev`` equal parts, one on each of the first ``ndev`` local devices,
+    inside a jitted function: one SPMD program (``jax.shard_map``; no communication between the
     parts, each device runs its own loops to their own ends), compiled and traced once for
     all the devices, where :func:`by_parts` compiles a program per device, each traced
     again under the interpreter lock (the hard Kelvin–Voigt scene's batched continuation
     corrector, 16 lanes on two CPU devices: 10.9 s -> 8.1 s to the first result, 1.04 ->
     0.84 s a call after).  ``shared`` (a pytree, its arrays replicated) is the same for all
-    lanes; the number of lanes must be a multiple of ``ndev``.  Call it under
-    :func:`one_blas_thread`."""
+    lanes; the number of lanes must be a multiple of ``ndev`` (see :func:`device_parts`).
+    Call it under :func:`one_blas_thread`."""
+    def f(shared, *lanes):
+        return jax.vmap(lambda *lane: one(shared, *lane))(*lanes)
+
     if ndev <= 1:
         return f(shared, *lanes)
     mesh = Mesh(np.array(jax.local_devices()[:ndev]), ("lanes",))
@@ -153,11 +157,17 @@ def lanes_on_devices(f, shared, *lanes, ndev):
     return g(dynamic, *lanes)
 
 
+def device_parts(size):
+    """The local devices a batch of ``size`` lanes is split over by
+    :func:`lanes_on_devices`: all of them where each gets at least two lanes and an equal
+    share, else one."""
+    ndev = jax.local_device_count()
+    return ndev if size % ndev == 0 and size >= 2 * ndev else 1
+
+
 def one_blas_thread(ndev):
     """A context holding BLAS (OpenBLAS, under XLA's LAPACK calls) to one thread while
     ``ndev > 1`` devices run (see :func:`on_devices`); a no-op on one device."""
-    import contextlib
-
     if ndev <= 1:
         return contextlib.nullcontext()
     from threadpoolctl import threadpool_limits

@@ -332,7 +332,7 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
                          status=status, residual=residual, iterations=jnp.asarray(iterations))
     if section is None:
         return steady
-    return steady, section_of(system, samples, section, scale, at_zero)
+    return steady, section_of(system, samples, section, at_zero)
 
 
 class Section(eqx.Module):
@@ -340,7 +340,7 @@ class Section(eqx.Module):
     (:func:`section_of`): ``clearance`` at the section, ``best_clearance`` at the best
     sample and ``least_clearance`` at the worst (the least distance [m] to any wall,
     negative in contact, ``inf`` without walls), the ``best`` sample's index from ``t = 0``
-    and its scaled state, and the orbit's internal state at ``t = 0``."""
+    and its internal state, and the orbit's internal state at ``t = 0``."""
 
     clearance: jax.Array
     best_clearance: jax.Array
@@ -350,7 +350,7 @@ class Section(eqx.Module):
     at_zero: jax.Array
 
 
-def section_of(system, samples, section, scale, at_zero):
+def section_of(system, samples, section, at_zero):
     """The :class:`Section` of an orbit's internal ``samples`` taken from the section
     ``section`` samples after ``t = 0``.
 
@@ -367,5 +367,5 @@ def section_of(system, samples, section, scale, at_zero):
         clear = -jnp.max(pen, axis=1)
     k = jnp.argmax(clear)
     return Section(clearance=clear[0], best_clearance=clear[k], least_clearance=jnp.min(clear),
-                   best=(section + k) % samples.shape[0], best_state=samples[k] / scale,
+                   best=(section + k) % samples.shape[0], best_state=samples[k],
                    at_zero=at_zero)

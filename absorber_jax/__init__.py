@@ -10,29 +10,23 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from . import presets  # noqa: E402
-from ._abstract_system import AbstractSystem  # noqa: E402
-from ._attractors import Attractor, AttractorMap, attractors, bifurcation_diagram  # noqa: E402
-from ._contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
-from ._continuation import (  # noqa: E402
+from ._continuation.continuation import (  # noqa: E402
     Bifurcation,
     Branch,
     PseudoArclength,
     band_continuation,
     continuation,
 )
-from ._design import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
-from ._devices import use_cpu_cores  # noqa: E402
-from ._elements import (  # noqa: E402
-    AbstractElement,
-    Contact,
-    FrictionContact,
-    FrictionDamper,
-    ImpactDamper,
-    TunedMassDamper,
-)
-from ._forcing import AbstractForcing, Harmonic, RampedHarmonic  # noqa: E402
-from ._friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
-from ._helpers import (  # noqa: E402
+from ._core.devices import use_cpu_cores  # noqa: E402
+from ._core.status import Status, describe  # noqa: E402
+from ._design.peak import BandPeak, exact_peak  # noqa: E402
+from ._design.robust import Coexisting, RobustPeak, robust_peak  # noqa: E402
+from ._design.tune import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
+from ._integration.simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
+from ._io.plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
+from ._laws.contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
+from ._laws.friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
+from ._laws.helpers import (  # noqa: E402
     effective_mass,
     equivalent_hertz_stiffness,
     hertz_contact_time,
@@ -41,27 +35,33 @@ from ._helpers import (  # noqa: E402
     linear_contact_time,
     linear_restitution,
 )
-from ._linear import linear_guess  # noqa: E402
-from ._marching import Marching  # noqa: E402
-from ._method import AbstractSteadyMethod  # noqa: E402
-from ._params import get_param, parameter_names, replace_params  # noqa: E402
-from ._peak import BandPeak, exact_peak  # noqa: E402
-from ._plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
-from ._robust import Coexisting, RobustPeak, robust_peak  # noqa: E402
-from ._shooting import Shooting  # noqa: E402
-from ._simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
-from ._status import Status, describe  # noqa: E402
-from ._steady import SteadyState, solve_point, steady_state  # noqa: E402
-from ._structural import StructuralSystem  # noqa: E402
-from ._structure import (  # noqa: E402
+from ._periodic.attractors import Attractor, AttractorMap, attractors, bifurcation_diagram  # noqa: E402
+from ._periodic.base import AbstractSteadyMethod  # noqa: E402
+from ._periodic.marching import Marching  # noqa: E402
+from ._periodic.shooting import Shooting  # noqa: E402
+from ._periodic.steady import SteadyState, solve_point, steady_state  # noqa: E402
+from ._periodic.sweep import FrequencyResponse, frequency_response  # noqa: E402
+from ._systems.absorbers import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
+from ._systems.base import AbstractSystem  # noqa: E402
+from ._systems.elements import (  # noqa: E402
+    AbstractElement,
+    Contact,
+    FrictionContact,
+    FrictionDamper,
+    ImpactDamper,
+    TunedMassDamper,
+)
+from ._systems.forcing import AbstractForcing, Harmonic, RampedHarmonic  # noqa: E402
+from ._systems.linear import linear_guess  # noqa: E402
+from ._systems.params import get_param, parameter_names, replace_params  # noqa: E402
+from ._systems.structural import StructuralSystem  # noqa: E402
+from ._systems.structure import (  # noqa: E402
     LinearStructure,
     cantilever_beam,
     shear_building,
     structure_from_matrices,
     structure_from_modes,
 )
-from ._sweep import FrequencyResponse, frequency_response  # noqa: E402
-from ._system import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -25,10 +25,10 @@ system, forcing = aj.presets.friction("lugre")
 
 from __future__ import annotations
 
-from ._contact import Hertz, HuntCrossley, KelvinVoigt
-from ._forcing import Harmonic, RampedHarmonic
-from ._friction import Coulomb, Dahl, LuGre, Stribeck
-from ._system import FrictionAbsorber, ImpactAbsorber
+from ._laws.contact import Hertz, HuntCrossley, KelvinVoigt
+from ._laws.friction import Coulomb, Dahl, LuGre, Stribeck
+from ._systems.absorbers import FrictionAbsorber, ImpactAbsorber
+from ._systems.forcing import Harmonic, RampedHarmonic
 
 IMPACT_GAP = 1e-3
 IMPACT_EPS = 1e-6

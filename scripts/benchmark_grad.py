@@ -15,9 +15,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import absorber_jax as aj
-from absorber_jax import _design
-from absorber_jax._forcing import Harmonic
-from absorber_jax._steady import make_config
+from absorber_jax._design.tune import tune as _design
+from absorber_jax._periodic.steady import make_config
+from absorber_jax._systems.forcing import Harmonic
 
 
 def main(repeats):

@@ -5,7 +5,7 @@
 
 import sys
 
-from absorber_jax._cli import main
+from absorber_jax._io.cli import main
 
 if __name__ == "__main__":
     sys.exit(main(["reproduce-paper", *sys.argv[1:]]))

@@ -39,7 +39,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from benchmark_structure import F0, RTOL, scene  # noqa: E402
 
 import absorber_jax as aj  # noqa: E402
-from absorber_jax._flow import state_scale  # noqa: E402
+from absorber_jax._integration.flow import state_scale  # noqa: E402
 
 PICK = (60, 100, 160)           # of the benchmark's 256-frequency grid
 STEPS = (150, 300, 600, 1200)

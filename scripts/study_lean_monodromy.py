@@ -62,8 +62,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import absorber_jax as aj
-from absorber_jax._flow import _scaled_rate, accurate_tangents, make_config
-from absorber_jax._orbit import FLOQUET_RTOL, monodromy
+from absorber_jax._integration.flow import _scaled_rate, accurate_tangents, make_config
+from absorber_jax._periodic.orbit import FLOQUET_RTOL, monodromy
 
 sys.path.insert(0, os.path.dirname(__file__))
 from benchmark_structure import F0, scene  # noqa: E402

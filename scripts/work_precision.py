@@ -270,7 +270,7 @@ def scipy_shooting(system, forcing, method, rtol):
 
     f = numpy_rhs(system, forcing)
     T = float(forcing.period)
-    from absorber_jax._steady import state_scale
+    from absorber_jax._periodic.steady import state_scale
 
     # internal [x1, v1, u, w, z] scale -> public [x1, v1, x2, v2, z] (same magnitudes)
     scale = np.asarray(state_scale(system, forcing))

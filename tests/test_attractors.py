@@ -9,7 +9,7 @@ import references as R
 from test_structural import nlvib03
 
 import absorber_jax as aj
-from absorber_jax._attractors import samples_per_period
+from absorber_jax._periodic.attractors import samples_per_period
 
 
 def test_table1_at_55_finds_the_period_5_orbit_and_the_floating_period_1_orbit():
@@ -185,7 +185,7 @@ def test_flow_along_is_the_flow_derivative_along_one_direction():
     import jax
     import jax.numpy as jnp
 
-    from absorber_jax._flow import _flow, accurate_tangents, flow_along, make_config
+    from absorber_jax._integration.flow import _flow, accurate_tangents, flow_along, make_config
 
     system, forcing = aj.presets.impact("kelvin_voigt", omega=40.0)
     cfg = make_config(system, forcing, rtol=1e-10, atol=1e-10)

@@ -137,7 +137,7 @@ def test_fill_starts_spread_over_the_gaps_by_width():
     """A fill pass's starts: as many as asked, at least one per gap, the rest to the gaps
     whose parts are widest, each at the centre of an equal part of its gap and bounded by
     it; with more gaps than starts, the widest ones."""
-    from absorber_jax._continuation import _fill_starts
+    from absorber_jax._continuation.continuation import _fill_starts
 
     gaps = [(28.3, 28.5), (29.1, 29.16), (30.0, 30.03)]       # widest first (as _gaps)
     values, limits = _fill_starts(gaps, 8)
@@ -160,7 +160,7 @@ def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
     the 240 periods), so its closest returns lie near the orbit: each seed's state is the
     exact piecewise-linear orbit's state at t = 0 to 1e-3 of the orbit's size, and the
     corrector from a seed converges to it (1e-6)."""
-    from absorber_jax._continuation import (
+    from absorber_jax._continuation.continuation import (
         _axis,
         _close_returns,
         _config,
@@ -169,7 +169,7 @@ def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
         _Problem,
         _run_batched,
     )
-    from absorber_jax._flow import state_scale
+    from absorber_jax._integration.flow import state_scale
 
     sysm = hardening()
     w = 1.1
@@ -241,9 +241,9 @@ def test_a_section_moved_off_time_zero_reports_the_same_orbit():
     samples independently."""
     import jax.numpy as jnp
 
-    from absorber_jax._flow import _flow, make_config, state_scale
-    from absorber_jax._forcing import PhasedHarmonic
-    from absorber_jax._orbit import SAMPLES_PER_PERIOD, _finish
+    from absorber_jax._integration.flow import _flow, make_config, state_scale
+    from absorber_jax._periodic.orbit import SAMPLES_PER_PERIOD, _finish
+    from absorber_jax._systems.forcing import PhasedHarmonic
 
     system = hardening()
     f = aj.Harmonic(amplitude=HARD["F0"], omega=1.1)
@@ -415,7 +415,7 @@ def test_cli_continue_and_attractors_inside_the_hysteresis(tmp_path, capsys):
     the branch, 1e-5)."""
     import json
 
-    from absorber_jax._cli import main
+    from absorber_jax._io.cli import main
 
     scene = {"structure": {"type": "matrices", "mass": [[1.0]], "stiffness": [[1.0]],
                            "damping": [[HARD["c"]]]},

@@ -5,7 +5,7 @@ import pytest
 from scipy.optimize import minimize
 
 import absorber_jax as aj
-from absorber_jax import _design
+from absorber_jax._design.tune import tune as _design
 
 TIGHT = dict(tol=1e-9, rtol=1e-11, atol=1e-11)
 

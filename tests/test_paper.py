@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from absorber_jax._cli import main
+from absorber_jax._io.cli import main
 
 FIGS = [2, 4, 6, 7, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20]
 

@@ -15,8 +15,8 @@ import pytest
 from test_structure import MASSES, RAYLEIGH, STOREYS, TMDS
 
 import absorber_jax as aj
-from absorber_jax._cli import main
-from absorber_jax._scene import SceneSettings, load_scene, scene_from_dict, toml_loads
+from absorber_jax._io.cli import main
+from absorber_jax._io.scene import SceneSettings, load_scene, scene_from_dict, toml_loads
 
 EXAMPLES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples")
 BUILDING = os.path.join(EXAMPLES, "building_tmds.toml")

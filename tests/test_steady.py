@@ -118,7 +118,7 @@ def test_den_hartog_coulomb_forced_response(omega):
 
 
 def test_failed_points_are_flagged_and_others_kept(monkeypatch):
-    from absorber_jax import _sweep
+    from absorber_jax._periodic import sweep as _sweep
 
     system, _ = aj.presets.impact("kelvin_voigt")
     om = np.linspace(40.0, 70.0, 8)
@@ -231,7 +231,7 @@ def test_sweep_runs_sharded_over_two_cpu_devices():
 
 
 def test_devices_work_through_jobs_in_order_and_raise_what_a_job_raised():
-    from absorber_jax._devices import on_devices
+    from absorber_jax._core.devices import on_devices
 
     ticks = []
     # jobs of unequal cost, more jobs than devices: each result lands at its job's place
@@ -261,7 +261,7 @@ def test_root_finders_return_their_best_iterate_at_a_noise_floor():
     import jax.numpy as jnp
     import optimistix as optx
 
-    from absorber_jax._shooting import _broyden, _root_solver
+    from absorber_jax._periodic.shooting import _broyden, _root_solver
 
     seen = []
 

@@ -10,7 +10,7 @@ import references as R
 import scipy.linalg as sl
 
 import absorber_jax as aj
-from absorber_jax._steady import make_config, period_map, state_scale
+from absorber_jax._periodic.steady import make_config, period_map, state_scale
 
 # the scene: a 0.1 kg absorber on k2 = 1e3, stick–slip at 70 rad/s under 20 N
 BASE = dict(m1=1.0, k1=1e4, c1=2.0, m2=0.1, k2=1e3, c2=0.0)

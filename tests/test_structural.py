@@ -11,7 +11,7 @@ import reference_nlvib03 as ref
 from test_structure import MASSES, RAYLEIGH, STOREYS, TMDS
 
 import absorber_jax as aj
-from absorber_jax._flow import SENSITIVITY_STATES
+from absorber_jax._integration.flow import SENSITIVITY_STATES
 
 K03 = np.array([[1.0, -1.0], [-1.0, 2.0]])
 
@@ -212,8 +212,8 @@ def test_large_state_monodromy_is_refined_only_near_the_unit_circle():
     it there): the 3-storey building with three TMDs as given (|mu| <= 0.74 at 24 rad/s),
     and with its damping cut 1000x (|mu| = 0.9997); both against exp(A T); each lane of a
     vmapped call on its own tier; no tiers when the tolerance asked is already coarse."""
-    from absorber_jax._flow import make_config
-    from absorber_jax._orbit import FLOQUET_RTOL_COARSE, floquet_matrix
+    from absorber_jax._integration.flow import make_config
+    from absorber_jax._periodic.orbit import FLOQUET_RTOL_COARSE, floquet_matrix
 
     got = {light: _check_two_tiers(light) for light in (False, True)}
     # vmapped over the two buildings (one lane each): each lane on its own tier
@@ -242,8 +242,8 @@ def _tiers_building(light, w=24.0):
 def _monodromy_at(sysm, f, x0, cfg, tol):
     import dataclasses
 
-    from absorber_jax._flow import accurate_tangents
-    from absorber_jax._orbit import monodromy
+    from absorber_jax._integration.flow import accurate_tangents
+    from absorber_jax._periodic.orbit import monodromy
 
     return np.asarray(monodromy(sysm, f, x0, 1, dataclasses.replace(
         accurate_tangents(cfg), rtol=tol, atol=tol)))
@@ -252,8 +252,8 @@ def _monodromy_at(sysm, f, x0, cfg, tol):
 def _check_two_tiers(light):
     from scipy.linalg import expm
 
-    from absorber_jax._flow import make_config, state_scale
-    from absorber_jax._orbit import (
+    from absorber_jax._integration.flow import make_config, state_scale
+    from absorber_jax._periodic.orbit import (
         FLOQUET_MARGIN,
         FLOQUET_RTOL,
         FLOQUET_RTOL_COARSE,

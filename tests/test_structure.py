@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from absorber_jax._structure import (
+from absorber_jax._systems.structure import (
     cantilever_beam,
     shear_building,
     structure_from_matrices,

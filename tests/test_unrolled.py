@@ -1,4 +1,4 @@
-"""The unrolled Runge–Kutta solvers (absorber_jax._unrolled) are diffrax's own: the same
+"""The unrolled Runge–Kutta solvers (absorber_jax._integration.unrolled) are diffrax's own: the same
 steps, states, dense output and forward-mode derivatives, to rounding."""
 
 import diffrax
@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from absorber_jax import _unrolled as U
+from absorber_jax._integration import unrolled as U
 
 
 def _duffing(t, y, args):

@@ -1,0 +1,1 @@
+"""Continuation of periodic orbits in a parameter, with bifurcations."""

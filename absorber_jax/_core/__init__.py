@@ -1,0 +1,1 @@
+"""Result codes, input checks and device helpers every layer uses."""

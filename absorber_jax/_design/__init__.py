@@ -1,0 +1,1 @@
+"""Design: band objectives, exact and robust peaks, tuning."""

@@ -1,0 +1,127 @@
+"""The worst response a design can show over a band: the exact peak of the response shooting
+follows, and every stable coexisting response found by marching from many initial states.
+
+A design objective that sees one orbit per frequency (the one Newton converged to) misses a
+larger response that coexists with it (a hardening resonance's upper branch inside its
+hysteresis, Table 1's period-5 orbit at 55 rad/s).  :func:`robust_peak` adds an attractor
+map (:func:`absorber_jax.attractors`) at ``probes`` frequencies across the band: each stable
+periodic response found there is a candidate, and the robust value is the largest of the
+exact peak and those responses' amplitudes.  A period-1 candidate is polished by shooting
+from its marched state and differentiated there at its fixed frequency (its gradient is the
+gradient of a response the structure can really settle on); a response of longer period
+enters the value, with no gradient (``gradient`` then holds NaN).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.status import Status
+from .._systems.forcing import Harmonic
+
+
+class Coexisting(eqx.Module):
+    """A stable response found by the attractor map at ``omega`` [rad/s]: its
+    ``amplitude``, ``period_multiple``, ``share`` of the initial states, ``stable`` and the
+    public ``state`` on it at ``t = 0 mod T``."""
+
+    omega: float
+    amplitude: float
+    period_multiple: int
+    share: float
+    stable: bool
+    state: np.ndarray
+
+
+class RobustPeak(eqx.Module):
+    """:func:`robust_peak`'s result.
+
+    ``value``/``omega``: the worst response over the band and its frequency; ``source``:
+    ``"branch"`` (the exact peak of the response shooting follows) or ``"coexisting"`` (a
+    response found by marching that is larger); ``gradient``: ``d value / d parameter``;
+    ``plain``: the exact peak alone (:class:`BandPeak`), what a plain objective reports;
+    ``coexisting``: every stable periodic response of the attractor maps."""
+
+    value: float
+    omega: float
+    source: str
+    gradient: dict
+    plain: object
+    coexisting: tuple
+
+    def summary(self):
+        return dict(value=self.value, omega=self.omega, source=self.source,
+                    plain=self.plain.value, gradient=self.gradient,
+                    coexisting=[dict(omega=c.omega, amplitude=c.amplitude,
+                                     period_multiple=c.period_multiple, share=c.share)
+                                for c in self.coexisting])
+
+
+def stable_responses(system, band, amplitude, *, probes, samples, spread=3.0, seed=0,
+                     max_periods=2000, solver=None, rtol=1e-10, atol=1e-10):
+    """``[(ω, attractor)]``: the stable periodic responses of attractor maps at ``probes``
+    frequencies uniform over ``band``."""
+    from .._periodic.attractors import attractors
+
+    found = []
+    for w in np.linspace(float(band[0]), float(band[1]), probes):
+        amap = attractors(system, Harmonic(amplitude=amplitude, omega=float(w)),
+                          samples=samples, spread=spread, seed=seed, max_periods=max_periods,
+                          solver=solver, rtol=rtol, atol=atol)
+        for att in amap.attractors:
+            if att.periodic and att.converged and att.stable:
+                found.append((float(w), att))
+    return found
+
+
+def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probes=8,
+                samples=16, spread=3.0, seed=0, max_periods=2000, tol=1e-7, rtol=1e-10,
+                atol=1e-10, newton_steps=40, solver=None) -> RobustPeak:
+    """The worst stable response over ``band`` (module docstring), with its gradient in
+    ``params``.
+
+    ``n_freq``, ``peaks``: the exact peak's grid and slots (:func:`exact_peak`); ``probes``:
+    frequencies of the attractor maps, uniform over the band; ``samples``, ``spread``,
+    ``seed``, ``max_periods``: their initial states and marching budget
+    (:func:`attractors`)."""
+    from .._periodic.steady import make_config
+    from .._systems.params import get_param
+    from .peak import evaluate_points, exact_peak
+    from .tune import Reparam
+
+    if not isinstance(probes, int) or probes < 1:
+        raise ValueError(f"robust_peak.probes must be a positive integer, got {probes!r}")
+    plain = exact_peak(system, band, amplitude=amplitude, params=params, n_freq=n_freq,
+                       peaks=peaks, tol=tol, rtol=rtol, atol=atol, newton_steps=newton_steps,
+                       solver=solver)
+    names = tuple(params)
+    found = stable_responses(system, band, amplitude, probes=probes, samples=samples,
+                             spread=spread, seed=seed, max_periods=max_periods, solver=solver,
+                             rtol=rtol, atol=atol)
+    coexisting = tuple(Coexisting(omega=w, amplitude=float(a.amplitude),
+                                  period_multiple=int(a.period_multiple), share=float(a.share),
+                                  stable=bool(a.stable), state=np.asarray(a.state))
+                       for w, a in found)
+    value, omega, source, grad = plain.value, plain.omega, "branch", plain.gradient
+    if found:
+        w, att = max(found, key=lambda f: f[1].amplitude)
+        if att.amplitude > value * (1 + 1e-6):
+            value, omega, source = float(att.amplitude), w, "coexisting"
+            grad = {k: float("nan") for k in names}
+            if att.period_multiple == 1:
+                forcing = Harmonic(amplitude=amplitude, omega=w)
+                cfg = make_config(system, forcing, solver, rtol, atol)
+                p = jnp.array([float(get_param(system, k)) for k in names])
+                guess = system.to_internal(jnp.asarray(att.state))[None]
+                # in batches of the exact peak's slots: its compiled program, reused
+                a, g, _, st = evaluate_points(
+                    system, names, Reparam.plain(len(names)), p, [w],
+                    jnp.asarray(amplitude, dtype=float), guess, cfg, float(tol),
+                    int(newton_steps), peaks)
+                if int(st[0]) == Status.SUCCESS:
+                    value = float(a[0])
+                    grad = {k: float(g[0, 1 + i]) for i, k in enumerate(names)}
+    return RobustPeak(value=value, omega=omega, source=source, gradient=grad, plain=plain,
+                      coexisting=coexisting)

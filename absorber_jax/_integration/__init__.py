@@ -1,0 +1,1 @@
+"""Time integration: simulate, the flow and its derivatives, exact stick-slip."""

@@ -1,0 +1,1 @@
+"""Scene files, the command line, plots and the paper reproduction."""

@@ -1,0 +1,1 @@
+"""Contact and friction laws, and the smoothing functions they use."""

@@ -1,0 +1,1 @@
+"""Periodic steady states: shooting, marching, Floquet stability, sweeps, attractor maps."""

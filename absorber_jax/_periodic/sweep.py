@@ -1,0 +1,488 @@
+"""Frequency-response curves: steady states over a frequency grid (and a design grid) in
+one compiled, vmapped call per chunk."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.checks import check_scalar, check_time_grid, require_x64
+from .._core.devices import by_parts, put
+from .._core.status import Status, describe
+from .._integration.flow import lane_by_lane, large_state, state_scale
+from .._integration.simulate import choose_solver
+from .._systems.base import AbstractSystem
+from .._systems.forcing import Harmonic
+from .._systems.params import replace_params, resolve
+from .orbit import SteadyResults, read_through
+from .steady import SteadyState, make_config, march_then_shoot, resolve_method, solve_point
+
+# the per-point scalar results of the point solve (SteadyState), in CSV order
+FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState)
+               if f.name not in ("state", "multipliers") and not f.name.startswith("dof_"))
+DOF_FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState) if f.name.startswith("dof_"))
+_INTEGER = ("period_multiple", "status", "iterations", "stable")
+
+
+class FrequencyResponse(SteadyResults, eqx.Module):
+    """Steady-state results over ``omegas`` (and designs): the point solve's
+    :class:`SteadyState`, batched (``steady``), with the grid.
+
+    Every field of :class:`SteadyState` reads through (``amplitude``, ``stable``, ``status``,
+    ``dof_amplitude`` ...; ``states`` and ``multipliers`` for ``state`` and
+    ``multipliers``).  Arrays have shape ``(F,)`` for a plain sweep, or ``(P, F)`` when
+    ``params`` gave ``P`` designs (per-degree-of-freedom fields add a last axis over
+    ``dof_names``).  ``status`` is per point (0 = success, see :class:`Status`); a failed point
+    never spoils the others.  ``direction`` is ``"parallel"`` (every point from its own linear
+    guess), ``"up"`` or ``"down"`` (each point seeded from its neighbour: follows a branch,
+    shows hysteresis)."""
+
+    omegas: np.ndarray
+    steady: SteadyState
+    params: dict
+    direction: str = eqx.field(static=True, default="parallel")
+    dof_names: tuple = eqx.field(static=True, default=())
+
+    def failures(self):
+        """``[(index, status text)]`` of the points that failed."""
+        idx = np.argwhere(self.status != Status.SUCCESS)
+        return [(tuple(int(j) for j in i), describe(self.status[tuple(i)])) for i in idx]
+
+    def to_csv(self, path):
+        """One row per (design, frequency): the parameters, ``omega``, the scalar fields, the
+        per-degree-of-freedom ones as ``<field>[<dof>]`` columns, the status text."""
+        dof_cols = [f"{k[4:]}[{d}]" for k in DOF_FIELDS for d in self.dof_names]
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            pnames = list(self.params)
+            w.writerow(["direction", *pnames, "omega", *FIELDS, *dof_cols, "status_text"])
+            amp = np.atleast_2d(self.amplitude)
+            P = amp.shape[0]
+            for p in range(P):
+                pv = [float(np.asarray(self.params[k])[p]) for k in pnames]
+                for f, om in enumerate(self.omegas):
+                    vals = [np.atleast_2d(getattr(self, k))[p, f] for k in FIELDS]
+                    vals = [int(v) if k in _INTEGER else float(v) for k, v in zip(FIELDS, vals)]
+                    dofs = [float(v) for k in DOF_FIELDS
+                            for v in np.asarray(getattr(self, k)).reshape(P, len(self.omegas),
+                                                                          -1)[p, f]]
+                    w.writerow([self.direction, *pv, float(om), *vals, *dofs,
+                                describe(np.atleast_2d(self.status)[p, f])])
+
+
+read_through(FrequencyResponse, FIELDS + DOF_FIELDS, "point")
+
+
+def _forcing(amplitude, omega):
+    return Harmonic(amplitude=amplitude, omega=omega)
+
+
+def _one_point(system, omega, amplitude, guess, cfg, method, with_floquet):
+    return solve_point(system, _forcing(amplitude, omega), method, cfg, guess=guess,
+                       with_floquet=with_floquet)
+
+
+# failed shooting points are retried in vmapped batches of this size (one compilation)
+RETRY_BATCH = 8
+# Newton steps of the vmapped first pass: a lane still iterating then is resumed from its
+# best iterate with the rest of the budget, in a small batch, so that the whole chunk does
+# not run in lockstep at the pace of its slowest lane (measured on the friction absorber of
+# scripts/benchmark_sweep.py: 230 of 256 points converge in <= 5 steps, one takes 14).
+# 5 rather than 8 (measured on the three scenes of scripts/benchmark_sweep.py, 256 points):
+# Table 1 1.23 -> 1.04 s, Table 5 LuGre 9.1 -> 7.1 s, exact Coulomb 1.72 -> 1.65 s; a 5th
+# step is mostly Newton confirming a residual already within tolerance
+FIRST_PASS_NEWTON = 5
+# chunks of at most this many points run every lane's whole Newton budget in the vmapped
+# pass: resuming a few stragglers of so few lanes would compile a second program (10-20 s)
+# to save a few lockstep Newton steps (ms)
+SMALL_CHUNK = 2 * RETRY_BATCH
+
+
+@eqx.filter_jit
+def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, method, names, with_floquet):
+    def point(w, pv, g):
+        return _one_point(_with(system, names, pv), w, amplitude, g, cfg, method, with_floquet)
+
+    return jax.vmap(point)(omegas, pvals, guesses)
+
+
+@eqx.filter_jit
+def _retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
+    def point(w, pv):
+        return march_then_shoot(_with(system, names, pv), _forcing(amplitude, w), cfg, method,
+                                with_floquet=with_floquet)
+
+    return jax.vmap(point)(omegas, pvals)
+
+
+def _retry_batch(system):
+    """Points per resume or retry call: ``RETRY_BATCH``, or 1 for large states, whose
+    Jacobians run lane by lane, so that a padding lane costs as much as a real one (the
+    20-DOF building's one straggler of 256 points was resumed in a batch of 8: 0.82 s of
+    a 7.2 s sweep)."""
+    return 1 if large_state(system) else RETRY_BATCH
+
+
+def _in_batches(res, bad, solve, desc, progress, size):
+    """Apply ``solve(padded indices)`` to the points ``bad`` of a flat (point-axis) result in
+    fixed batches of ``size`` (one compilation) and write the results back; the iteration
+    counts add up."""
+    from tqdm.auto import tqdm
+
+    for start in tqdm(range(0, bad.size, size), desc=desc, disable=not progress):
+        idx = bad[start:start + size]
+        pad = np.concatenate([idx, np.repeat(idx[-1:], size - idx.size)])
+        k = idx.size
+        out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad))
+        out = eqx.tree_at(lambda r: r.iterations, out, out.iterations + res.iterations[idx])
+
+        def write(dst, src, idx=idx):
+            dst[idx] = src
+            return dst
+
+        res = jax.tree_util.tree_map(write, res, out)
+    return res
+
+
+def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_floquet,
+                       progress):
+    """After the vmapped first pass: resume the lanes still iterating from their last
+    iterate with ``rest`` (``method.resume``; None when the first pass had the whole
+    budget), then (``method.retry``) re-solve what still failed by marching then
+    shooting."""
+    res = jax.tree_util.tree_map(np.array, res)  # writable copies
+    if rest is not None:
+        slow = np.flatnonzero(res.status == Status.NO_CONVERGENCE)
+
+        def guesses(p):
+            return jnp.asarray(np.stack([np.asarray(
+                _with(system, names, PV[i]).to_internal(res.state[i])) for i in p]))
+
+        res = _in_batches(res, slow, lambda p: _resume_chunk(
+            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), guesses(p), cfg, rest, names,
+            with_floquet), "resume", progress, _retry_batch(system))
+    if method.retry:
+        bad = np.flatnonzero(res.status != Status.SUCCESS)
+        res = _in_batches(res, bad, lambda p: _retry_chunk(
+            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
+            with_floquet), "retry", progress, _retry_batch(system))
+    return res
+
+
+def _with(system, names, values):
+    return replace_params(system, dict(zip(names, values)), check=False) if names else system
+
+
+@eqx.filter_jit
+def _parallel_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
+    nan = jnp.full((system.num_states,), jnp.nan)
+
+    def point(w, pv):
+        return _one_point(_with(system, names, pv), w, amplitude, nan, cfg, method,
+                          with_floquet)
+
+    return jax.vmap(point)(omegas, pvals)
+
+
+# points one lane of a chained sweep solves in a row (see _chained_sweep)
+MAX_CHAIN = 16
+# ... and when its lanes run one at a time (see _one_lane_at_a_time): one lane per device and
+# compiled call
+ALONE_CHAIN = 64
+
+
+# a chained point extrapolates its start (orbit and Jacobian) linearly from the last two
+# converged points of its lane when its frequency lies within this many of their spacings
+# beyond the last (a failed point between them widens the gap); farther, the last alone
+MAX_EXTRAPOLATION = 1.5
+
+
+@eqx.filter_jit
+def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
+    """Lanes (vmapped) of consecutive frequencies ``omegas[lane]``: each point solved by
+    ``method.solve_chained`` from the lane's last converged orbits and the Jacobians they
+    left (the first point from the method's own start and ``method.chain_jacobian`` there).
+    Once two points have converged, the start is their linear extrapolation in ω (the
+    Jacobians too, when each point leaves its own: ``with_floquet``): measured on the
+    44-state building of ``scripts/benchmark_structure.py``, quasi-Newton steps per point
+    median 7 -> 5 (the neighbour's orbit alone is a few percent off there, the secant
+    ~3x closer, and its Jacobian error about halves).  Large states' lanes run one at a
+    time (:func:`_one_lane_at_a_time`)."""
+
+    def lane(ws, pv, system, amplitude):
+        sysp = _with(system, names, pv)
+        f0 = _forcing(amplitude, ws[0])
+        s0 = state_scale(sysp, f0)
+        x0 = method.initial_state(sysp, f0)
+
+        def step(carry, w):
+            # the last two converged points: internal orbit states, Jacobians in unscaled
+            # internal coordinates (diag(s) J diag(1/s): velocities scale with ω), frequencies
+            # (NaN until a point has converged there)
+            (x1, j1, w1), (x2, j2, w2) = carry
+            f = _forcing(amplitude, w)
+            s = state_scale(sysp, f)
+            # (a padded lane repeats its last frequency: w1 == w2 there, no extrapolation)
+            two = jnp.isfinite(w2) & (w1 != w2)
+            r = (w - w1) / jnp.where(two, w1 - w2, 1.0)
+            r = jnp.where(two & (r <= MAX_EXTRAPOLATION), r, 0.0)
+            x = x1 + r * (x1 - x2)
+            jac = (j1 + r * (j1 - j2)) if with_floquet else j1
+            res, jac = method.solve_chained(sysp, f, x / s, jac / s[:, None] * s[None, :], cfg,
+                                            with_floquet=with_floquet)
+            ok = res.status == Status.SUCCESS
+            new = ((sysp.to_internal(res.state), s[:, None] * jac / s[None, :], w), (x1, j1, w1))
+            return jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, carry), res
+
+        j0 = s0[:, None] * method.chain_jacobian(sysp, f0, x0 / s0, cfg) / s0[None, :]
+        first = (x0, j0, jnp.full_like(ws[0], jnp.nan))
+        return jax.lax.scan(step, (first, first), ws)[1]
+
+    if _one_lane_at_a_time(system):
+        lane = lane_by_lane(lane)
+    return jax.vmap(lane, in_axes=(0, 0, None, None))(omegas, pvals, system, amplitude)
+
+
+def _one_lane_at_a_time(system):
+    """Whether a chained sweep runs its lanes one at a time (``lane_by_lane``) rather than
+    vmapped in lockstep: for large states (``_flow.large_state``), whose Floquet
+    monodromies run lane by lane anyway.  In lockstep every point of a chunk of lanes waits
+    for the lane needing the most quasi-Newton steps (the 44-state building of
+    ``scripts/benchmark_structure.py``: median 7, but up to the first pass's 20 in almost
+    every chunk); one at a time, a period integration cost 4 ms instead of 2.3 ms per
+    lane (2.4 ms since its stages are unrolled, see ``_unrolled``) but each lane takes only
+    its own steps, and lanes can be longer (``ALONE_CHAIN``
+    points, one lane per device and compiled call: fewer first points, each started from
+    the linear guess with up to ~20 steps).  Measured there, 256 frequencies: 20.4 s
+    vmapped (lanes of 4), 17.2 s one at a time in lanes of 16, 15.5 s in lanes of 64."""
+    return large_state(system)
+
+
+def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, progress):
+    """The points ``(W, PV)`` solved independently, ``size`` per compiled call; the flat
+    results."""
+    return by_parts(np.arange(W.shape[0]), size, lambda p, d: _parallel_chunk(
+        system, put(W[p], d), amp, put(PV[p], d), cfg, first, names, floquet), ndev, progress)
+
+
+def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress,
+                   per_design):
+    """The points ``(W, PV)`` (design-major: ``per_design`` frequencies of each design, in
+    order) solved in lanes of up to ``MAX_CHAIN`` consecutive frequencies of one design, so
+    that every point but a lane's first starts from its neighbours' orbits and monodromies
+    (the chord's Jacobian; see :func:`_chained_chunk`); ``chunk_size`` lanes per compiled call
+    (large states: lanes of ``ALONE_CHAIN``, one per device and call).
+    Returns the flat results (one per point)."""
+    total = W.shape[0]
+    alone = _one_lane_at_a_time(system)
+    k = int(min(ALONE_CHAIN, per_design) if alone
+            else min(MAX_CHAIN, max(1, math.ceil(total / chunk_size))))
+    # lanes never cross from one design to the next
+    lanes = np.concatenate([np.minimum(np.arange(a, a + per_design, k)[:, None]
+                                       + np.arange(k)[None, :], a + per_design - 1)
+                            for a in range(0, total, per_design)])      # (L, k) points
+    size = ndev if alone else int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
+    res = by_parts(lanes, size, lambda p, d: _chained_chunk(
+        system, put(W[p], d), amp, put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev,
+                   progress)
+    # back to one result per point (a lane padded by repeating its last point wrote it twice)
+    flat = lanes.reshape(-1)
+    where = np.empty(total, dtype=int)
+    where[flat[::-1]] = np.arange(flat.size)[::-1]
+    return jax.tree_util.tree_map(lambda a: a.reshape((-1,) + a.shape[2:])[where], res)
+
+
+@eqx.filter_jit
+def _sequential_chunk(system, omegas, amplitude, pvals, carry, cfg, method, names, with_floquet):
+    """lax.scan along the frequency axis (vmapped over designs), each point seeded from the
+    previous point's orbit when that one converged."""
+
+    def per_design(pv, s_prev):
+        sysp = _with(system, names, pv)
+
+        def step(s_prev, w):
+            res = _one_point(sysp, w, amplitude, s_prev, cfg, method, with_floquet)
+            s_int = sysp.to_internal(res.state)
+            nxt = jnp.where(res.status == Status.SUCCESS, s_int, jnp.nan)
+            return nxt, res
+
+        return jax.lax.scan(step, s_prev, omegas)
+
+    carry, res = jax.vmap(per_design)(pvals, carry)
+    return carry, res
+
+
+def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="shooting",
+                       params=None, direction="parallel", chunk_size=64, progress=False,
+                       shard=True, floquet=True, solver=None, rtol=1e-9, atol=1e-9,
+                       max_steps=200_000, n=None, tol=None, n_max=None, newton_steps=None,
+                       max_periods=None, chunk=None, root=None, retry=None):
+    """Steady-state frequency response of ``system`` under ``amplitude·sin(ωt)`` for every
+    ``ω`` in ``omegas`` [rad/s], in one jit-compiled vmapped call per chunk.
+
+    **Arguments**
+
+    - ``omegas``: sorted 1-D grid [rad/s]; ``amplitude``: force amplitude F0 [N].
+    - ``method``: :class:`Shooting` (default) or :class:`Marching`, as an object or by name
+      with its options as keywords (see :func:`steady_state`).
+    - ``params``: optional ``{name: 1-D array}`` of designs (same length ``P``); names as in
+      :mod:`_systems.params` (``k1``, ``c1``, ``m``, ``gap``, ``N``, ...).  Results then
+      have shape ``(P, F)``: a (design × frequency) grid in one call.
+    - ``direction``: ``"parallel"`` (independent points), ``"up"``, ``"down"`` (sequential,
+      each point seeded from its neighbour) or ``"both"`` (returns ``(up, down)``).
+    - ``chunk_size``: points per compiled call (padded, so one compilation serves all
+      chunks); ``progress``: show a tqdm bar over chunks.
+    - ``shard``: split each chunk (``direction="parallel"``) over all local devices (when
+      there are several), an equal part per device, each device running its own copy of
+      the program (compiled once per device) and taking the next part when its last is
+      done.  On a CPU, :func:`use_cpu_cores` (before any JAX computation) gives one device
+      per core.
+    - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
+      ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
+      the lanes still iterating resume from their best iterate a few at a time, and
+      (``retry``, the default) the points that still failed are re-solved by marching then
+      shooting (:func:`march_then_shoot`) before they are flagged.
+    - With ``root="chord"`` the parallel pass solves lanes of up to ``MAX_CHAIN``
+      neighbouring frequencies (``ceil(points / chunk_size)`` of them; large states:
+      ``ALONE_CHAIN``, one lane at a time), each point from the previous orbits of its lane
+      (extrapolated from the last two) with the previous Floquet monodromies as its
+      Jacobian: one monodromy per point (measured on the 44-state building of
+      ``scripts/benchmark_structure.py``: 62 → 34 s for 256 frequencies; 15.5 s with large
+      states' lanes one at a time, 4.3 s on two cores with the later changes).
+    - the remaining keywords as in :func:`steady_state`.
+
+    ```python
+    import numpy as np, absorber_jax as aj
+    system, _ = aj.presets.impact("kelvin_voigt")
+    frf = aj.frequency_response(system, np.linspace(30, 70, 64), amplitude=2.0)
+    frf.amplitude, frf.stable, frf.status
+    ```
+    """
+    require_x64("frequency_response")
+    if not isinstance(system, AbstractSystem):
+        raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
+                         f"StructuralSystem, got {type(system).__name__}")
+    check_time_grid("omegas", omegas, strictly=True)
+    om = np.asarray(omegas, dtype=float)
+    if om[0] <= 0:
+        raise ValueError(f"omegas must be > 0 [rad/s], got {om[0]:g}")
+    check_scalar("frequency_response", "amplitude", amplitude, lo=0.0)
+    method = resolve_method(method, "frequency_response", n=n, tol=tol, n_max=n_max,
+                            newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
+                            root=root, retry=retry)
+    if direction not in ("parallel", "up", "down", "both"):
+        raise ValueError(f"direction must be 'parallel', 'up', 'down' or 'both', got {direction!r}")
+    if not isinstance(chunk_size, int) or chunk_size < 1:
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    if direction == "both":
+        kw = dict(amplitude=amplitude, method=method, params=params, chunk_size=chunk_size,
+                  progress=progress, shard=shard, floquet=floquet, solver=solver, rtol=rtol,
+                  atol=atol, max_steps=max_steps)
+        return (frequency_response(system, om, direction="up", **kw),
+                frequency_response(system, om, direction="down", **kw))
+
+    names, pvals = _check_params(system, params)
+    P = pvals.shape[0]
+    if solver is None or solver == "auto":
+        # one solver serves the whole grid: implicit if any design is stiff at the lowest
+        # frequency (the longest period: the most explicit steps per period)
+        designs = pvals if P <= 256 else np.stack([pvals.min(0), pvals.max(0)])
+        f0 = _forcing(amplitude, float(om[0]))
+        stiff = any(choose_solver(replace_params(system, dict(zip(names, d))), f0,
+                                  rtol=rtol) != "tsit5"
+                    for d in designs) if names else choose_solver(system, f0, rtol=rtol) != "tsit5"
+        solver = "kvaerno5" if stiff else "tsit5"
+    cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
+    amp = jnp.asarray(amplitude, dtype=float)
+    floquet = bool(floquet)
+    order = om if direction != "down" else om[::-1]
+
+    from tqdm.auto import tqdm
+
+    if direction == "parallel":
+        # flatten (design, frequency) into one axis of points
+        W = np.broadcast_to(order[None, :], (P, len(order))).reshape(-1)
+        PV = np.repeat(pvals, len(order), axis=0)
+        total = W.shape[0]
+        size = min(chunk_size, total)
+        ndev = jax.local_device_count() if shard else 1
+        size = int(math.ceil(size / ndev) * ndev)
+        first, rest = ((method.first_pass(FIRST_PASS_NEWTON), method.resume(FIRST_PASS_NEWTON))
+                       if size > SMALL_CHUNK else (method, None))
+        if method.chains:
+            res = _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size,
+                                 ndev, progress, len(order))
+        else:
+            res = _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev,
+                                  progress)
+        res = _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, floquet,
+                                 progress)
+        res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(order)) + a.shape[1:]), res)
+    else:
+        carry = jnp.full((P, system.num_states), jnp.nan)
+        size = min(chunk_size, len(order))
+        out = []
+        pv = jnp.asarray(pvals)
+        for start in tqdm(range(0, len(order), size), desc=f"sweep {direction}",
+                          disable=not progress):
+            w = order[start:start + size]
+            pad = size - w.shape[0]
+            if pad:
+                w = np.concatenate([w, np.repeat(w[-1:], pad)])
+            carry, res = _sequential_chunk(system, jnp.asarray(w), amp, pv, carry, cfg, method,
+                                           names, floquet)
+            keep = size - pad
+            out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
+        res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)
+        if direction == "down":
+            res = jax.tree_util.tree_map(lambda a: a[:, ::-1], res)
+        if method.retry:
+            # a point the branch could not be followed to (past a fold, a grazing) is
+            # re-solved by marching from rest then shooting: the sweep jumps to the
+            # attractor there, as a slow physical sweep would
+            flat = jax.tree_util.tree_map(lambda a: np.array(a).reshape((-1,) + a.shape[2:]),
+                                          res)
+            W = np.broadcast_to(om[None, :], (P, len(om))).reshape(-1)
+            PV = np.repeat(pvals, len(om), axis=0)
+            bad = np.flatnonzero(flat.status != Status.SUCCESS)
+            flat = _in_batches(flat, bad, lambda p: _retry_chunk(
+                system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
+                floquet), "retry", progress, _retry_batch(system))
+            res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), flat)
+    squeeze = params is None
+    get = (lambda a: a[0]) if squeeze else (lambda a: a)
+    return FrequencyResponse(
+        omegas=om, steady=jax.tree_util.tree_map(lambda a: get(np.asarray(a)), res),
+        params={k: np.asarray(pvals[:, i]) for i, k in enumerate(names)},
+        direction=direction, dof_names=tuple(system.output_names),
+    )
+
+
+def _check_params(system, params):
+    if not params:
+        return (), np.zeros((1, 0))
+    names = tuple(params)
+    cols = []
+    for k in names:
+        resolve(system, k)
+        v = np.atleast_1d(np.asarray(params[k], dtype=float))
+        if v.ndim != 1:
+            raise ValueError(f"params[{k!r}] must be a 1-D array, got shape {v.shape}")
+        cols.append(v)
+    P = cols[0].shape[0]
+    for k, v in zip(names, cols):
+        if v.shape[0] != P:
+            raise ValueError(f"params arrays must share one length: {names[0]!r} has {P}, "
+                             f"{k!r} has {v.shape[0]}")
+        # range checks are monotone: validating the extremes validates every design
+        for extreme in (v.min(), v.max()):
+            replace_params(system, {k: float(extreme)}, check=True)
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"params[{k!r}] must be finite")
+    return names, np.stack(cols, axis=1)

@@ -1,0 +1,1 @@
+"""Systems, structures, elements, forcing and parameters by name."""

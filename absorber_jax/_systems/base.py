@@ -1,0 +1,152 @@
+"""The abstract system: the only members the generic layers (simulate, steady states,
+sweeps, design, CLI) talk to.
+
+Two families implement it: the paper's one-mass-one-absorber systems
+(:class:`ImpactAbsorber`, :class:`FrictionAbsorber`, in ``_system``) and the general
+:class:`StructuralSystem` (a :class:`LinearStructure` carrying any number of elements, in
+``_structural``).  Each declares:
+
+- its state: ``num_states``, ``state_names`` (the named slices of the flat *public* state),
+  ``to_internal``/``to_public`` (the integrator's state and the user's), ``rest_state``,
+  ``state_scale`` (the per-component scale the integrator and Newton work in);
+- its dynamics: ``vector_field``, ``mechanical_energy``, ``power``, the solver hints
+  ``stiffness_rate``/``oscillation_rate`` and, for exact stick–slip, the hybrid members;
+- what is measured on it: ``output_names``/``outputs`` (displacements at named degrees of
+  freedom [m or rad]), ``observable`` (the scalar signal that ``amplitude``, ``rms``,
+  ``harmonic`` and the design objectives use), ``strokes`` (each absorber's motion relative
+  to its host), ``floating_pairs`` (structural Floquet multipliers 1 of absorbers that never
+  touch anything), ``penetrations`` (each contact wall's signed penetration, for counting
+  impacts);
+- its named parameters: ``parameter_path`` and ``parameter_names``.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+import jax.numpy as jnp
+
+
+class AbstractSystem(eqx.Module):
+    """A forced mechanical system (module docstring)."""
+
+    # -- state ------------------------------------------------------------------------
+    @property
+    @abc.abstractmethod
+    def num_states(self) -> int:
+        """Length of the (internal and public) state vector."""
+
+    @property
+    @abc.abstractmethod
+    def state_names(self) -> tuple:
+        """Names of the public state's components, in order."""
+
+    def to_internal(self, y):
+        """Public state -> the integrator's state (identity unless overridden)."""
+        return jnp.asarray(y)
+
+    def to_public(self, s):
+        """The integrator's state (with any leading batch axes) -> public state."""
+        return jnp.asarray(s)
+
+    def rest_state(self):
+        """Internal state at rest."""
+        return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
+
+    @abc.abstractmethod
+    def state_scale(self, forcing):
+        """Per-component natural scale of the internal state under ``forcing``."""
+
+    @abc.abstractmethod
+    def linear_guess(self, forcing):
+        """A starting orbit for shooting (internal state at ``t = 0``)."""
+
+    # -- dynamics ---------------------------------------------------------------------
+    @abc.abstractmethod
+    def vector_field(self, t, s, forcing):
+        """d/dt of the internal state ``s`` under ``forcing``."""
+
+    @abc.abstractmethod
+    def mechanical_energy(self, s):
+        """Kinetic + potential energy [J] of internal state ``s``."""
+
+    @abc.abstractmethod
+    def power(self, t, s, forcing):
+        """``(input power of the forcing, dissipated power)`` [W]."""
+
+    @abc.abstractmethod
+    def stiffness_rate(self):
+        """Rough largest rate [1/s] of the linearised dynamics (solver choice)."""
+
+    def oscillation_rate(self):
+        """Angular frequency [rad/s] of a fast, lightly damped internal oscillation that any
+        solver must resolve at tight tolerances (solver choice; 0 when none)."""
+        return jnp.zeros(())
+
+    def trajectory_fields(self, ts, s, forcing):
+        """Extra per-instant fields of a simulated :class:`Trajectory` (``coupling_force``
+        and, where they apply, friction diagnostics) from internal states ``s`` at ``ts``."""
+        return {"coupling_force": jnp.zeros((ts.shape[0], 0))}
+
+    # -- exact nonsmooth (hybrid) dynamics: see absorber_jax._integration.stickslip --------------
+    @property
+    def hybrid(self) -> bool:
+        """``True`` when integrated by switching modes at events (exact stick–slip)."""
+        return False
+
+    def mode_of(self, t, s, forcing):
+        """Integer mode of internal state ``s`` at time ``t`` (hybrid systems only)."""
+        raise NotImplementedError
+
+    def mode_rate(self, t, s, forcing, mode):
+        """d/dt of ``s`` within ``mode`` (hybrid systems only)."""
+        raise NotImplementedError
+
+    def switch_function(self, t, s, forcing, mode):
+        """Leaves ``mode`` where this crosses zero upwards (hybrid systems only)."""
+        raise NotImplementedError
+
+    def next_mode(self, t, s, forcing, mode):
+        """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
+        raise NotImplementedError
+
+    # -- what is measured ---------------------------------------------------------------
+    @property
+    @abc.abstractmethod
+    def output_names(self) -> tuple:
+        """Names of the degrees of freedom reported per result (``dof_amplitude`` ...)."""
+
+    @abc.abstractmethod
+    def outputs(self, s):
+        """Displacements [m or rad] at the ``output_names`` for internal state ``s``."""
+
+    @abc.abstractmethod
+    def observable(self, s):
+        """The scalar signal whose amplitude, RMS and harmonic a result reports and the
+        design objectives minimise."""
+
+    def strokes(self, s):
+        """Each absorber's displacement relative to its host (empty when none)."""
+        return jnp.zeros((0,), dtype=jnp.result_type(s))
+
+    def penetrations(self, s):
+        """Signed penetration [m] of each contact wall at internal state ``s`` (``> 0``
+        while that wall is closed), in a fixed order; empty when the system has no contact.
+        Impacts are counted from its sign changes (attractor statistics)."""
+        return jnp.zeros((0,), dtype=jnp.result_type(s))
+
+    def floating_pairs(self, stroke_max):
+        """How many absorbers float on an orbit whose strokes stay within ``stroke_max``
+        (each gives a structural double Floquet multiplier 1, not a loss of stability)."""
+        return jnp.zeros((), int)
+
+    # -- named parameters ---------------------------------------------------------------
+    def parameter_path(self, name: str) -> str:
+        """Dotted field path of parameter ``name`` (aliases resolved; integers index
+        tuples).  Unknown names are caught by the caller."""
+        return name
+
+    @abc.abstractmethod
+    def parameter_names(self) -> list:
+        """The names :func:`replace_params`, sweeps and ``tune`` accept."""

@@ -1,0 +1,536 @@
+"""Elements attached to a :class:`LinearStructure` (issue 11): absorbers that bring a mass of
+their own, and nonlinear connections between two degrees of freedom or one and ground.
+
+Each element reads the displacements and velocities of the degrees of freedom it touches,
+``x = (x_a, x_b)`` and ``v = (v_a, v_b)`` (``x_b = v_b = 0`` when ``other`` is ground), and
+returns the forces ``(f_a, f_b)`` [N] it applies to them; an element with states of its own
+(an absorber's motion relative to its host ``u = x_abs - x_a``, ``w = u̇``; a bristle
+deflection ``z``) also gives their rates once the accelerations ``a = (a_a, a_b)`` of its
+degrees of freedom are known.  Generic code (``_structural``) talks to these members only.
+
+- :class:`ImpactDamper`: a mass in a clearance (any contact law) at one degree of freedom;
+- :class:`FrictionDamper`: a mass tied by a spring and dashpot, sliding under a normal force
+  (any smoothed or bristle friction law) at one degree of freedom;
+- :class:`TunedMassDamper`: a mass on a spring and dashpot (linear);
+- :class:`Contact`: a one- or two-sided contact with a gap between a degree of freedom and
+  ground or another degree of freedom (any contact law);
+- :class:`FrictionContact`: a friction contact between a degree of freedom and ground or
+  another one (any smoothed or bristle friction law).
+
+Units: SI; on a rotational degree of freedom forces are moments [N m] and lengths [rad].
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._core.checks import as_float, nonnegative, positive
+from .._laws.contact import AbstractContactLaw
+from .._laws.friction import AbstractFrictionLaw
+
+
+def _zeros(n, like):
+    return jnp.zeros((n,), dtype=jnp.result_type(like, float))
+
+
+class AbstractElement(eqx.Module):
+    """An element attached to a structure (module docstring)."""
+
+    dof: eqx.AbstractVar[object]     # name (or index) of the degree of freedom it acts on
+    # every concrete element also has the (static, defaulted) fields ``other`` (the second
+    # degree of freedom, None for ground) and ``name`` (for parameters ``<name>.<field>``
+    # and outputs); not declared as AbstractVars here, whose position would come before the
+    # concrete classes' required fields
+
+    kind: eqx.AbstractClassVar[str]  # default name stem
+
+    @property
+    def num_states(self) -> int:
+        return 0
+
+    @property
+    def state_labels(self) -> tuple:
+        """Names of its states (suffixes of ``<name>.``)."""
+        return ()
+
+    @abc.abstractmethod
+    def evaluate(self, x, v, z):
+        """``(forces (f_a, f_b) [N], aux)`` for displacements ``x``, velocities ``v`` of its
+        two degrees of freedom and its states ``z``; ``aux`` goes to :meth:`state_rate`."""
+
+    def state_rate(self, x, v, a, z, aux):
+        """d/dt of its states given the accelerations ``a`` of its degrees of freedom."""
+        return _zeros(0, x)
+
+    @abc.abstractmethod
+    def energy(self, x, v, z):
+        """Kinetic energy of its own masses plus the potential energy it stores [J]."""
+
+    @abc.abstractmethod
+    def dissipation(self, x, v, z):
+        """Power [W] it dissipates."""
+
+    @property
+    def num_strokes(self) -> int:
+        """1 for an absorber (a mass riding on its host), else 0."""
+        return 0
+
+    def strokes(self, z):
+        """Its absorber's displacement relative to the host (empty if not an absorber)."""
+        return _zeros(0, z)
+
+    def penetrations(self, x, v, z):
+        """Signed penetration [m] of each of its contact walls (``> 0``: closed); empty
+        when it has none."""
+        return _zeros(0, x)
+
+    def floats(self, stroke_max):
+        """1 when its absorber floats free on an orbit within ``stroke_max``, else 0."""
+        return jnp.zeros((), int)
+
+    def state_scale(self, length, omega):
+        """Natural size of its states for a motion of size ``length`` at ``omega``."""
+        return _zeros(0, length)
+
+    def length_floor(self):
+        """Smallest natural length [m] of the motion it allows (a gap)."""
+        return jnp.zeros(())
+
+    @abc.abstractmethod
+    def stiffness_rate(self, host_mass):
+        """Rough largest rate [1/s] it adds (``host_mass``: the structure's effective mass
+        at its degree of freedom)."""
+
+    def oscillation_rate(self, host_mass):
+        return jnp.zeros(())
+
+    def aliases(self) -> dict:
+        """Short parameter names mapped to field paths within the element."""
+        return {}
+
+    # -- exact stick–slip (one element per system, see StructuralSystem's hybrid members) --
+    @property
+    def exact(self) -> bool:
+        """True when the element's friction is the exact nonsmooth law (event-driven)."""
+        return False
+
+    def slip_velocity(self, z):
+        """Sliding velocity ``V`` whose sign is the slip mode (exact elements only)."""
+        raise NotImplementedError
+
+    def evaluate_mode(self, x, v, z, friction_force):
+        """:meth:`evaluate` with the friction force given (exact elements only)."""
+        raise NotImplementedError
+
+    def holding_friction(self, z, host_acceleration, host_compliance):
+        """Friction force [N] that keeps it stuck, from the host's acceleration without its
+        force and the host's acceleration per unit force on it (exact elements only)."""
+        raise NotImplementedError
+
+    def stuck_rate(self, rate):
+        """Its state rate while stuck (the sliding coordinates frozen)."""
+        raise NotImplementedError
+
+    def breakaway(self):
+        """Largest friction force [N] it holds while stuck (exact elements only)."""
+        raise NotImplementedError
+
+    def kinetic(self, speed):
+        """Friction force magnitude [N] while slipping at ``speed`` (exact elements only)."""
+        raise NotImplementedError
+
+    def inertia(self):
+        """The mass [kg] whose inertia force scales its holding force (exact elements)."""
+        raise NotImplementedError
+
+    def stop_slip(self, z):
+        """Its states with the sliding velocity set exactly to zero (end of a slip)."""
+        raise NotImplementedError
+
+    def parameter_names(self) -> list:
+        fields = [f.name for f in dataclasses.fields(self)
+                  if f.init and f.name not in ("dof", "other", "name", "contact", "friction")]
+        return fields + list(self.aliases())
+
+    def check(self):
+        """Element-level checks that need the structure (none by default)."""
+
+
+def _law_aliases(law, prefix):
+    return {f.name: f"{prefix}.{f.name}" for f in dataclasses.fields(law)
+            if f.init and f.name != "exact"}
+
+
+def _check_contact(owner, law):
+    if not isinstance(law, AbstractContactLaw):
+        raise ValueError(f"{owner}.contact must be a contact law (KelvinVoigt, Hertz or "
+                         f"HuntCrossley), got {type(law).__name__}")
+
+
+def _check_friction(owner, law, *, exact_ok):
+    if not isinstance(law, AbstractFrictionLaw):
+        raise ValueError(f"{owner}.friction must be a friction law (Coulomb, Stribeck, Dahl "
+                         f"or LuGre), got {type(law).__name__}")
+    if law.exact and not exact_ok:
+        raise ValueError(
+            f"{owner}.friction: exact stick–slip (events) is available in FrictionDamper; "
+            f"here give a smoothing length (e.g. Coulomb(mu, eps=1e-5)) or a bristle law "
+            f"(Dahl, LuGre)")
+
+
+class _Absorber(AbstractElement):
+    """An absorber mass ``m`` riding on its host degree of freedom; states ``u = x_abs -
+    x_host``, ``w = u̇``.  The force it applies to the host is ``coupling(u, w, z)``."""
+
+    # every concrete absorber has a field ``m`` (its mass [kg]); not declared as an
+    # AbstractVar here: equinox 0.13 rejects a converter field overriding one
+
+    @property
+    def num_states(self) -> int:
+        return 2 + self.num_law_states
+
+    @property
+    def num_law_states(self) -> int:
+        return 0
+
+    @property
+    def state_labels(self) -> tuple:
+        return ("u", "w") + tuple(f"z{i + 1}" for i in range(self.num_law_states))
+
+    @abc.abstractmethod
+    def coupling(self, u, w, z):
+        """``(force on the host [N], dz/dt)``."""
+
+    @abc.abstractmethod
+    def coupling_energy(self, u, z):
+        """Potential energy [J] of the coupling."""
+
+    @abc.abstractmethod
+    def coupling_dissipation(self, u, w, z):
+        """Power [W] dissipated in the coupling."""
+
+    def evaluate(self, x, v, z):
+        f, zdot = self.coupling(z[0], z[1], z[2:])
+        return jnp.stack([f, jnp.zeros_like(f)]), (f, zdot)
+
+    def state_rate(self, x, v, a, z, aux):
+        f, zdot = aux
+        # the absorber feels -f: its acceleration relative to the host
+        return jnp.concatenate([jnp.stack([z[1], -f / self.m - a[0]]), zdot])
+
+    def energy(self, x, v, z):
+        return 0.5 * self.m * (v[0] + z[1]) ** 2 + self.coupling_energy(z[0], z[2:])
+
+    def dissipation(self, x, v, z):
+        return self.coupling_dissipation(z[0], z[1], z[2:])
+
+    @property
+    def num_strokes(self) -> int:
+        return 1
+
+    def strokes(self, z):
+        return z[:1]
+
+    def state_scale(self, length, omega):
+        L = jnp.maximum(length, self.length_floor())
+        return jnp.concatenate([jnp.stack([L, L * omega]), self.law_state_scale()])
+
+    def law_state_scale(self):
+        return jnp.zeros((0,))
+
+
+class ImpactDamper(_Absorber):
+    r"""An impact absorber at a degree of freedom: a mass ``m`` [kg] moving freely in a
+    cavity of the host with clearance ``gap`` [m] on each side, ``contact`` any contact law
+    (the paper's section 2 with the host as primary).  With ``u = x_abs - x_host``,
+    ``δ± = max(0, ±u - gap)``, the force on the host is ``f(δ+, u̇) - f(δ-, -u̇)``.
+
+    ```python
+    ImpactDamper("x3", m=0.05, gap=2e-3, contact=KelvinVoigt(stiffness=1e5, damping=20.0))
+    ```
+    """
+
+    dof: object = eqx.field(static=True)
+    m: object = eqx.field(converter=as_float)
+    gap: object = eqx.field(converter=as_float)
+    contact: AbstractContactLaw
+    name: object = eqx.field(static=True, default=None)
+    other: object = eqx.field(static=True, default=None, init=False)
+    kind: ClassVar[str] = "impact"
+
+    def __check_init__(self):
+        positive("ImpactDamper", "m", self.m)
+        nonnegative("ImpactDamper", "gap", self.gap)
+        _check_contact("ImpactDamper", self.contact)
+
+    def coupling(self, u, w, z):
+        return self.contact.clearance_force(u, w, self.gap), _zeros(0, u)
+
+    def penetrations(self, x, v, z):
+        return self.contact.clearance_penetrations(z[0], self.gap)
+
+    def coupling_energy(self, u, z):
+        return self.contact.clearance_energy(u, self.gap)
+
+    def coupling_dissipation(self, u, w, z):
+        return self.contact.clearance_dissipation(u, w, self.gap)
+
+    def length_floor(self):
+        return self.gap
+
+    def floats(self, stroke_max):
+        return (stroke_max[0] < self.gap).astype(int)
+
+    def stiffness_rate(self, host_mass):
+        meff = self.m * host_mass / (self.m + host_mass)
+        return self.contact.stiffness_rate(meff, jnp.maximum(self.gap, 1e-3))
+
+    def aliases(self):
+        return _law_aliases(self.contact, "contact")
+
+
+class FrictionDamper(_Absorber):
+    r"""A friction absorber at a degree of freedom: a mass ``m`` [kg] tied to the host by a
+    spring ``k`` [N/m] and a dashpot ``c`` [N s/m] and sliding on it under the normal force
+    ``normal_force`` [N] (parameter alias ``N``) with ``friction`` a smoothed (``eps``) or
+    bristle law (the paper's section 3 with the host as primary).  With ``u = x_abs - x_host``
+    the force on the host is ``k u + c u̇ - F_nl(-u̇)``.
+
+    ```python
+    FrictionDamper("w9", m=0.2, k=5e3, c=0.0, normal_force=2.0,
+                   friction=Coulomb(mu=0.5, eps=1e-5))
+    ```
+    """
+
+    dof: object = eqx.field(static=True)
+    m: object = eqx.field(converter=as_float)
+    k: object = eqx.field(converter=as_float)
+    c: object = eqx.field(converter=as_float)
+    normal_force: object = eqx.field(converter=as_float)
+    friction: AbstractFrictionLaw
+    name: object = eqx.field(static=True, default=None)
+    other: object = eqx.field(static=True, default=None, init=False)
+    kind: ClassVar[str] = "friction"
+
+    def __check_init__(self):
+        positive("FrictionDamper", "m", self.m)
+        nonnegative("FrictionDamper", "k", self.k)
+        nonnegative("FrictionDamper", "c", self.c)
+        nonnegative("FrictionDamper", "normal_force", self.normal_force)
+        _check_friction("FrictionDamper", self.friction, exact_ok=True)
+
+    @property
+    def num_law_states(self) -> int:
+        return self.friction.num_states
+
+    def coupling(self, u, w, z):
+        # X = x_host - x_abs = -u: the same law and signs as FrictionAbsorber
+        fnl = self.friction.force(-w, z, self.normal_force)
+        zdot = self.friction.state_rate(-w, z, self.normal_force)
+        return self.c * w + self.k * u - fnl, zdot
+
+    def coupling_energy(self, u, z):
+        return 0.5 * self.k * u**2 + self.friction.stored_energy(z)
+
+    def coupling_dissipation(self, u, w, z):
+        return self.c * w**2 + self.friction.dissipated_power(-w, z, self.normal_force)
+
+    def law_state_scale(self):
+        return self.friction.state_scale(self.normal_force)
+
+    def stiffness_rate(self, host_mass):
+        meff = self.m * host_mass / (self.m + host_mass)
+        return jnp.maximum(jnp.maximum(jnp.sqrt(self.k / meff), self.c / meff),
+                           self.friction.stiffness_rate(self.normal_force, meff))
+
+    def oscillation_rate(self, host_mass):
+        meff = self.m * host_mass / (self.m + host_mass)
+        return self.friction.oscillation_rate(self.normal_force, meff)
+
+    def aliases(self):
+        return {"N": "normal_force", **_law_aliases(self.friction, "friction")}
+
+    # -- exact stick–slip: the same law and signs as FrictionAbsorber (X = -u, V = -w) -----
+    @property
+    def exact(self) -> bool:
+        return self.friction.exact
+
+    def slip_velocity(self, z):
+        return -z[1]
+
+    def evaluate_mode(self, x, v, z, friction_force):
+        f = self.c * z[1] + self.k * z[0] - friction_force
+        return jnp.stack([f, jnp.zeros_like(f)]), (f, _zeros(0, f))
+
+    def holding_friction(self, z, host_acceleration, host_compliance):
+        # stuck: the absorber moves with its host, -f/m = a0 + h f, so f = -m a0 / (1 + m h)
+        f = -self.m * host_acceleration / (1.0 + self.m * host_compliance)
+        return self.c * z[1] + self.k * z[0] - f
+
+    def stuck_rate(self, rate):
+        return jnp.zeros_like(rate)
+
+    def breakaway(self):
+        return self.friction.breakaway_force(self.normal_force)
+
+    def kinetic(self, speed):
+        return self.friction.kinetic_force(speed, self.normal_force)
+
+    def inertia(self):
+        return self.m
+
+    def stop_slip(self, z):
+        return z.at[1].set(0.0)
+
+
+class TunedMassDamper(_Absorber):
+    r"""A linear tuned mass damper at a degree of freedom: a mass ``m`` [kg] on a spring
+    ``k`` [N/m] and a dashpot ``c`` [N s/m]; force on the host ``k u + c u̇``.
+
+    ```python
+    TunedMassDamper("x3", m=0.1, k=90.0, c=0.6)
+    ```
+    """
+
+    dof: object = eqx.field(static=True)
+    m: object = eqx.field(converter=as_float)
+    k: object = eqx.field(converter=as_float)
+    c: object = eqx.field(converter=as_float)
+    name: object = eqx.field(static=True, default=None)
+    other: object = eqx.field(static=True, default=None, init=False)
+    kind: ClassVar[str] = "tmd"
+
+    def __check_init__(self):
+        positive("TunedMassDamper", "m", self.m)
+        nonnegative("TunedMassDamper", "k", self.k)
+        nonnegative("TunedMassDamper", "c", self.c)
+
+    def coupling(self, u, w, z):
+        return self.k * u + self.c * w, _zeros(0, u)
+
+    def coupling_energy(self, u, z):
+        return 0.5 * self.k * u**2
+
+    def coupling_dissipation(self, u, w, z):
+        return self.c * w**2
+
+    def stiffness_rate(self, host_mass):
+        meff = self.m * host_mass / (self.m + host_mass)
+        return jnp.maximum(jnp.sqrt(self.k / meff), self.c / meff)
+
+
+class Contact(AbstractElement):
+    r"""A contact with a gap between the degree of freedom ``dof`` and ``other`` (another
+    degree of freedom, or ground when ``None``), ``contact`` any contact law.
+
+    With ``r = x_dof - x_other``: ``sides="one"`` acts when ``direction · r > gap``
+    (penetration ``δ = direction · r - gap``), pushing ``dof`` back with ``-direction · f(δ,
+    δ̇)`` and ``other`` the other way; ``sides="two"`` acts on both sides (``|r| > gap``), a
+    clearance.  NLvib's unilateral spring of stiffness 100 when ``q1 > 1`` is
+    ``Contact("x1", gap=1.0, contact=KelvinVoigt(stiffness=100.0, damping=0.0))``.
+    """
+
+    dof: object = eqx.field(static=True)
+    gap: object = eqx.field(converter=as_float)
+    contact: AbstractContactLaw
+    other: object = eqx.field(static=True, default=None)
+    sides: str = eqx.field(static=True, default="one")
+    direction: int = eqx.field(static=True, default=1)
+    name: object = eqx.field(static=True, default=None)
+    kind: ClassVar[str] = "contact"
+
+    def __check_init__(self):
+        nonnegative("Contact", "gap", self.gap)
+        _check_contact("Contact", self.contact)
+        if self.sides not in ("one", "two"):
+            raise ValueError(f"Contact.sides must be 'one' or 'two', got {self.sides!r}")
+        if self.direction not in (1, -1):
+            raise ValueError(f"Contact.direction must be +1 or -1, got {self.direction!r}")
+
+    def _walls(self, x, v):
+        r, rd = self.direction * (x[0] - x[1]), self.direction * (v[0] - v[1])
+        walls = [(r - self.gap, rd, 1.0)]
+        if self.sides == "two":
+            walls.append((-r - self.gap, -rd, -1.0))
+        return walls
+
+    def penetrations(self, x, v, z):
+        return jnp.stack([p for p, _, _ in self._walls(x, v)])
+
+    def evaluate(self, x, v, z):
+        f = sum(sgn * self.contact.wall_force(p, pd)[0] for p, pd, sgn in self._walls(x, v))
+        f = self.direction * f  # along +r, pushing dof back and other forward
+        return jnp.stack([-f, f]), None
+
+    def energy(self, x, v, z):
+        return sum(self.contact.potential(jnp.maximum(p, 0.0)) for p, _, _ in self._walls(x, v))
+
+    def dissipation(self, x, v, z):
+        return sum(self.contact.dissipated_power(p, pd) for p, pd, _ in self._walls(x, v))
+
+    def length_floor(self):
+        return self.gap
+
+    def stiffness_rate(self, host_mass):
+        return self.contact.stiffness_rate(host_mass, jnp.maximum(self.gap, 1e-3))
+
+    def aliases(self):
+        return _law_aliases(self.contact, "contact")
+
+
+class FrictionContact(AbstractElement):
+    r"""A friction contact between ``dof`` and ``other`` (another degree of freedom, or
+    ground when ``None``) pressed by ``normal_force`` [N] (alias ``N``), ``friction`` a
+    smoothed or bristle law: with the slip velocity ``V = v_dof - v_other`` it pushes ``dof``
+    with ``-F(V, z)`` and ``other`` with ``+F``.  A bristle law's deflection ``z`` is its state.
+    """
+
+    dof: object = eqx.field(static=True)
+    normal_force: object = eqx.field(converter=as_float)
+    friction: AbstractFrictionLaw
+    other: object = eqx.field(static=True, default=None)
+    name: object = eqx.field(static=True, default=None)
+    kind: ClassVar[str] = "friction_contact"
+
+    def __check_init__(self):
+        nonnegative("FrictionContact", "normal_force", self.normal_force)
+        _check_friction("FrictionContact", self.friction, exact_ok=False)
+
+    @property
+    def num_states(self) -> int:
+        return self.friction.num_states
+
+    @property
+    def state_labels(self) -> tuple:
+        return tuple(f"z{i + 1}" for i in range(self.num_states))
+
+    def evaluate(self, x, v, z):
+        V = v[0] - v[1]
+        f = self.friction.force(V, z, self.normal_force)
+        return jnp.stack([-f, f]), self.friction.state_rate(V, z, self.normal_force)
+
+    def state_rate(self, x, v, a, z, aux):
+        return aux
+
+    def energy(self, x, v, z):
+        return self.friction.stored_energy(z)
+
+    def dissipation(self, x, v, z):
+        return self.friction.dissipated_power(v[0] - v[1], z, self.normal_force)
+
+    def state_scale(self, length, omega):
+        return self.friction.state_scale(self.normal_force)
+
+    def stiffness_rate(self, host_mass):
+        return self.friction.stiffness_rate(self.normal_force, host_mass)
+
+    def oscillation_rate(self, host_mass):
+        return self.friction.oscillation_rate(self.normal_force, host_mass)
+
+    def aliases(self):
+        return {"N": "normal_force", **_law_aliases(self.friction, "friction")}

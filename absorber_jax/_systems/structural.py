@@ -1,0 +1,455 @@
+r"""The general system (issue 11): a :class:`LinearStructure` carrying any number of elements
+(absorbers, tuned mass dampers, contacts, friction contacts), loaded by ``F(t)`` distributed
+over its degrees of freedom.
+
+$$M_q\ddot q + C_q\dot q + K_q q = \Phi^T\Big(b\,F(t) + \sum_e f_e(\Phi q, \Phi\dot q, z_e)\Big),$$
+
+each element ``e`` reading the displacements ``x = Φ q`` of its degrees of freedom and its own
+states ``z_e`` (an absorber's relative motion, a bristle deflection) and pushing back with
+``f_e``; its states then evolve with the degrees of freedom's accelerations ``Φ q̈``.
+
+State (internal = public), a flat vector with named slices (``state_names``, ``slice_of``):
+``[q (n), q̇ (n), element states ...]`` in the structure's coordinates (the degrees of freedom
+themselves for a matrix model, modal coordinates for a modal one).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.checks import is_traced
+from .base import AbstractSystem
+from .elements import AbstractElement
+from .linear import finite_or_zero
+from .structure import LinearStructure
+
+
+def _weights(structure, value, field):
+    """A vector over the degrees of freedom from a name, a ``{name: weight}`` dict or an
+    array (ValueError naming ``field`` otherwise)."""
+    n = structure.num_dofs
+    if isinstance(value, str):
+        value = {value: 1.0}
+    if isinstance(value, dict):
+        w = np.zeros(n)
+        for k, v in value.items():
+            try:
+                i = structure.dof_index(k)
+            except ValueError as e:
+                raise ValueError(f"StructuralSystem.{field}: {e}") from None
+            w[i] += float(v)
+        return jnp.asarray(w)
+    arr = jnp.asarray(value, dtype=float)
+    if arr.shape != (n,):
+        raise ValueError(f"StructuralSystem.{field} must be a degree-of-freedom name, a "
+                         f"{{name: weight}} dict or an array of shape ({n},), got shape "
+                         f"{arr.shape}")
+    return arr
+
+
+def _all_diagonal(*mats) -> bool:
+    """Whether every matrix is (concretely) diagonal; False for traced ones."""
+    if any(is_traced(m) for m in mats):
+        return False
+    return all(not np.any(np.asarray(m) - np.diag(np.diag(np.asarray(m)))) for m in mats)
+
+
+class StructuralSystem(AbstractSystem):
+    """A linear structure with elements attached, forced by ``F(t) · load`` (module
+    docstring).
+
+    **Arguments**
+
+    - ``structure``: a :class:`LinearStructure` (matrices or modes).
+    - ``elements``: a sequence of elements (:class:`ImpactDamper`, :class:`FrictionDamper`,
+      :class:`TunedMassDamper`, :class:`Contact`, :class:`FrictionContact`), each named by its
+      ``name`` or ``<kind><count>`` (``impact1``, ``tmd2``, ...); their parameters are
+      ``<name>.<field>`` (``tmd1.k``, ``friction1.N``).
+    - ``load``: where ``F(t)`` acts: a degree-of-freedom name (unit weight), a
+      ``{name: weight}`` dict or a vector over the degrees of freedom (a force [N] per unit
+      ``F``).
+    - ``observe``: the observable of the results and design objectives: a degree of freedom,
+      or a ``{name: weight}`` dict / vector for the weighted signal ``Σ w_i x_i`` (e.g. an
+      inter-storey drift ``{"x3": 1, "x2": -1}``); default the loaded degree of freedom
+      when the load acts on one.
+
+    ```python
+    building = shear_building([1.0] * 3, [1e3] * 3, rayleigh=(0.1, 1e-4))
+    sys = StructuralSystem(building, [TunedMassDamper("x3", m=0.1, k=25.0, c=0.5)],
+                           load="x1", observe="x3")
+    ```
+    """
+
+    structure: LinearStructure
+    elements: tuple
+    load: jax.Array
+    observe: jax.Array
+    mass_inverse: jax.Array
+    # mass, damping and stiffness all diagonal (a modal model): the equations of motion are
+    # then evaluated mode by mode (elementwise) instead of by matrix products
+    diagonal: bool = eqx.field(static=True, init=False)
+
+    def __init__(self, structure, elements=(), *, load, observe=None, mass_inverse=None):
+        if not isinstance(structure, LinearStructure):
+            raise ValueError(f"StructuralSystem.structure must be a LinearStructure, got "
+                             f"{type(structure).__name__}")
+        elements = tuple(elements)
+        for e in elements:
+            if not isinstance(e, AbstractElement):
+                raise ValueError(f"StructuralSystem.elements must be elements (ImpactDamper, "
+                                 f"FrictionDamper, TunedMassDamper, Contact, FrictionContact), "
+                                 f"got {type(e).__name__}")
+            for d in (e.dof,) + (() if e.other is None else (e.other,)):
+                try:
+                    structure.dof_index(d)
+                except ValueError as err:
+                    raise ValueError(f"StructuralSystem.elements: {type(e).__name__}: "
+                                     f"{err}") from None
+        self.structure = structure
+        self.elements = elements
+        self.load = _weights(structure, load, "load")
+        if observe is None:
+            nz = np.flatnonzero(np.asarray(self.load))
+            if nz.size != 1:
+                raise ValueError("StructuralSystem.observe must be given when the load acts on "
+                                 "several degrees of freedom")
+            observe = structure.dof_names[int(nz[0])]
+        self.observe = _weights(structure, observe, "observe")
+        self.mass_inverse = (jnp.linalg.inv(structure.mass) if mass_inverse is None
+                             else jnp.asarray(mass_inverse, dtype=float))
+        self.diagonal = _all_diagonal(structure.mass, structure.damping, structure.stiffness,
+                                      self.mass_inverse)
+        if sum(bool(e.exact) for e in elements) > 1:
+            raise ValueError("StructuralSystem.elements: at most one friction damper with an "
+                             "exact (event-driven) law; give the others an eps")
+        names = self.element_names
+        clash = set(names) & set(structure.dof_names)
+        if len(set(names)) != len(names) or clash:
+            raise ValueError(f"StructuralSystem.elements: names must be distinct and differ "
+                             f"from the degrees of freedom, got {list(names)}")
+
+    # -- layout ----------------------------------------------------------------------
+    @property
+    def element_names(self) -> tuple:
+        names, count = [], {}
+        for e in self.elements:
+            count[e.kind] = count.get(e.kind, 0) + 1
+            names.append(e.name if e.name is not None else f"{e.kind}{count[e.kind]}")
+        return tuple(names)
+
+    @property
+    def num_coords(self) -> int:
+        return self.structure.num_coords
+
+    def _offsets(self):
+        off, out = 2 * self.num_coords, []
+        for e in self.elements:
+            out.append(off)
+            off += e.num_states
+        return out, off
+
+    @property
+    def num_states(self) -> int:
+        return self._offsets()[1]
+
+    def slice_of(self, name):
+        """The slice of the state holding element ``name``'s states (or ``"q"``, ``"qd"``)."""
+        n = self.num_coords
+        if name == "q":
+            return slice(0, n)
+        if name == "qd":
+            return slice(n, 2 * n)
+        if name not in self.element_names:
+            raise ValueError(f"slice_of: unknown {name!r}; known: q, qd, "
+                             f"{', '.join(self.element_names)}")
+        i = self.element_names.index(name)
+        off = self._offsets()[0][i]
+        return slice(off, off + self.elements[i].num_states)
+
+    @property
+    def state_names(self) -> tuple:
+        n = self.num_coords
+        names = [f"q{i + 1}" for i in range(n)] + [f"qd{i + 1}" for i in range(n)]
+        for nm, e in zip(self.element_names, self.elements):
+            names += [f"{nm}.{lab}" for lab in e.state_labels]
+        return tuple(names)
+
+    def _dofs(self):
+        st = self.structure
+        return [(st.dof_index(e.dof), -1 if e.other is None else st.dof_index(e.other))
+                for e in self.elements]
+
+    def _used(self):
+        """The degrees of freedom the elements attach to (sorted), and each element's pair of
+        positions in that list (``-1``: ground)."""
+        dofs = self._dofs()
+        used = sorted({d for pair in dofs for d in pair if d >= 0})
+        return used, [(used.index(ia), used.index(ib) if ib >= 0 else -1) for ia, ib in dofs]
+
+    def _at_elements(self, y):
+        """``Φ y`` at the elements' degrees of freedom only (``y`` in the coordinates: ``q``,
+        ``q̇`` or ``q̈``): the rows of ``Φ`` nobody reads are never multiplied."""
+        used, _ = self._used()
+        return self.structure.dof_map[np.asarray(used, dtype=int)] @ y
+
+    def _pieces(self, s):
+        n = self.num_coords
+        q, qd = s[:n], s[n:2 * n]
+        offs, _ = self._offsets()
+        zs = [s[o:o + e.num_states] for o, e in zip(offs, self.elements)]
+        return q, qd, zs
+
+    @staticmethod
+    def _pair(x, ia, ib):
+        return jnp.stack([x[ia], x[ib] if ib >= 0 else jnp.zeros_like(x[ia])])
+
+    def _element_views(self, s):
+        """Per element ``(x_e, v_e, z_e)``: the displacements and velocities of its two
+        degrees of freedom (ground: 0) and its own states."""
+        q, qd, zs = self._pieces(s)
+        xu, vu = self._at_elements(q), self._at_elements(qd)
+        _, pos = self._used()
+        return [(self._pair(xu, a, b), self._pair(vu, a, b), z) for (a, b), z in zip(pos, zs)]
+
+    # -- dynamics ----------------------------------------------------------------------
+    def _forces(self, views, exact_force=None, skip=None):
+        """The elements' forces at their degrees of freedom (a vector over ``_used``) and
+        each element's ``aux``; the exact element's friction force is ``exact_force`` when
+        given; element ``skip`` is left out."""
+        used, pos = self._used()
+        f = jnp.zeros((len(used),))
+        auxes = []
+        for i, (e, (a, b), (xe, ve, z)) in enumerate(zip(self.elements, pos, views)):
+            if exact_force is not None and i == self._exact_index():
+                fe, aux = e.evaluate_mode(xe, ve, z, exact_force)
+            else:
+                fe, aux = e.evaluate(xe, ve, z)
+            auxes.append(aux)
+            if i == skip:
+                continue
+            f = f.at[a].add(fe[0])
+            if b >= 0:
+                f = f.at[b].add(fe[1])
+        return f, auxes
+
+    def _accelerations(self, s, f_used, f_ext):
+        """``q̈`` under the element forces ``f_used`` (at ``_used``) and the load ``F = f_ext``."""
+        st = self.structure
+        q, qd, _ = self._pieces(s)
+        used, _ = self._used()
+        rhs = (st.dof_map[np.asarray(used, dtype=int)].T @ f_used
+               + (self.load @ st.dof_map) * f_ext)
+        if self.diagonal:
+            return jnp.diagonal(self.mass_inverse) * (
+                rhs - jnp.diagonal(st.damping) * qd - jnp.diagonal(st.stiffness) * q)
+        return self.mass_inverse @ (rhs - st.damping @ qd - st.stiffness @ q)
+
+    def _rate(self, s, f_ext, exact_force=None, stuck=None):
+        """d/dt of ``s`` under the external force ``F = f_ext`` [N] (the exact element's
+        friction force given, its sliding coordinates frozen when ``stuck``)."""
+        views = self._element_views(s)
+        f, auxes = self._forces(views, exact_force)
+        qdd = self._accelerations(s, f, f_ext)
+        au = self._at_elements(qdd)
+        _, pos = self._used()
+        rates = []
+        for i, (e, (a, b), (xe, ve, z), aux) in enumerate(zip(self.elements, pos, views,
+                                                               auxes)):
+            r = e.state_rate(xe, ve, self._pair(au, a, b), z, aux)
+            if stuck is not None and i == self._exact_index():
+                r = jnp.where(stuck, e.stuck_rate(r), r)
+            rates.append(r)
+        n = self.num_coords
+        return jnp.concatenate([s[n:2 * n], qdd, *rates])
+
+    # -- exact stick–slip of one friction damper (modes 0 stick, ±1 slip with sign(V)) -----
+    def _exact_index(self):
+        idx = [i for i, e in enumerate(self.elements) if e.exact]
+        return idx[0] if idx else -1
+
+    @property
+    def hybrid(self) -> bool:
+        return self._exact_index() >= 0
+
+    def _exact(self, s):
+        i = self._exact_index()
+        e = self.elements[i]
+        off = self._offsets()[0][i]
+        return i, e, s[off:off + e.num_states], self._dofs()[i][0]
+
+    def holding_force(self, t, s, forcing):
+        """Friction force [N] that keeps the exact damper stuck to its host."""
+        i, e, z, ia = self._exact(s)
+        f_ext = forcing(t)
+        f, _ = self._forces(self._element_views(s), exact_force=jnp.zeros(()), skip=i)
+        phi = self.structure.dof_map[ia]
+        a0 = phi @ self._accelerations(s, f, f_ext)
+        return e.holding_friction(z, a0, phi @ self.mass_inverse @ phi)
+
+    def _holding_mode(self, t, s, forcing):
+        _, e, _, _ = self._exact(s)
+        f = self.holding_force(t, s, forcing)
+        stuck = jnp.abs(f) <= e.breakaway()
+        return jnp.where(stuck, 0, jnp.where(f > 0, 1, -1))
+
+    def mode_of(self, t, s, forcing):
+        _, e, z, _ = self._exact(s)
+        V = e.slip_velocity(z)
+        return jnp.where(V > 0, 1, jnp.where(V < 0, -1, self._holding_mode(t, s, forcing)))
+
+    def mode_rate(self, t, s, forcing, mode):
+        _, e, z, _ = self._exact(s)
+        slip = mode * e.kinetic(jnp.abs(e.slip_velocity(z)))
+        fnl = jnp.where(mode == 0, self.holding_force(t, s, forcing), slip)
+        return self._rate(s, forcing(t), exact_force=fnl, stuck=mode == 0)
+
+    def switch_function(self, t, s, forcing, mode):
+        # dimensionless as in FrictionAbsorber: the holding force over the breakaway limit
+        # plus the inertia force m ω² L of the host's motion scale; the sliding velocity
+        # over the host's velocity scale L ω (rising through 0 when the slip stops)
+        i, e, z, _ = self._exact(s)
+        cap = e.breakaway()
+        f = self.holding_force(t, s, forcing)
+        scale = self.state_scale(forcing)[self._offsets()[0][i] + 1]     # L ω at the host
+        f_ref = cap + e.inertia() * forcing.omega * scale
+        return jnp.where(mode == 0, (jnp.abs(f) - cap) / jnp.maximum(f_ref, 1e-300),
+                         -mode * e.slip_velocity(z) / jnp.maximum(scale, 1e-30))
+
+    def next_mode(self, t, s, forcing, mode):
+        i, e, z, _ = self._exact(s)
+        off = self._offsets()[0][i]
+        z = jnp.where(mode == 0, z, e.stop_slip(z))
+        s = s.at[off:off + e.num_states].set(z)
+        f = self.holding_force(t, s, forcing)
+        new = jnp.where(mode == 0, jnp.where(f > 0, 1, -1), self._holding_mode(t, s, forcing))
+        return new, s
+
+    def vector_field(self, t, s, forcing):
+        return self._rate(s, forcing(t))
+
+    def element_forces(self, s):
+        """Force [N] each element applies to its (first) degree of freedom."""
+        out = [e.evaluate(xe, ve, z)[0][0]
+               for e, (xe, ve, z) in zip(self.elements, self._element_views(s))]
+        return jnp.stack(out) if out else jnp.zeros((0,), s.dtype)
+
+    def trajectory_fields(self, ts, s, forcing):
+        return {"coupling_force": jax.vmap(self.element_forces)(s)}
+
+    def mechanical_energy(self, s):
+        st = self.structure
+        q, qd, _ = self._pieces(s)
+        e = 0.5 * qd @ st.mass @ qd + 0.5 * q @ st.stiffness @ q
+        for el, (xe, ve, z) in zip(self.elements, self._element_views(s)):
+            e = e + el.energy(xe, ve, z)
+        return e
+
+    def power(self, t, s, forcing):
+        st = self.structure
+        _, qd, _ = self._pieces(s)
+        diss = qd @ st.damping @ qd
+        for el, (xe, ve, z) in zip(self.elements, self._element_views(s)):
+            diss = diss + el.dissipation(xe, ve, z)
+        return forcing(t) * (self.load @ (st.dof_map @ qd)), diss
+
+    # -- scales, guesses, solver hints ---------------------------------------------------
+    def _host_masses(self):
+        """Effective mass of the structure at each degree of freedom, ``1 / (Φ_i M⁻¹ Φ_iᵀ)``."""
+        Phi = self.structure.dof_map
+        return 1.0 / jnp.maximum(jnp.einsum("ij,jk,ik->i", Phi, self.mass_inverse, Phi),
+                                 1e-300)
+
+    def _length_floor(self):
+        floors = [e.length_floor() for e in self.elements]
+        return jnp.max(jnp.stack(floors)) if floors else jnp.zeros(())
+
+    def state_scale(self, forcing):
+        """Coordinates: ``F0 |Φᵀ b|_∞ / (K_jj + ω² M_jj)``, at least the largest gap (in the
+        coordinate's units, ``/ max_i |Φ_ij|``); velocities ``× ω``; each element's states
+        from the resulting length at its degree of freedom."""
+        st = self.structure
+        w = forcing.omega
+        g = forcing.amplitude * jnp.max(jnp.abs(st.dof_map.T @ self.load))
+        Lc = g / (jnp.diag(st.stiffness) + w**2 * jnp.diag(st.mass))
+        reach = jnp.maximum(jnp.max(jnp.abs(st.dof_map), axis=0), 1e-300)
+        Lc = jnp.maximum(jnp.maximum(Lc, self._length_floor() / reach), 1e-12)
+        Ldof = jnp.abs(st.dof_map) @ Lc
+        parts = [Lc, Lc * w]
+        for e, (ia, _) in zip(self.elements, self._dofs()):
+            parts.append(e.state_scale(Ldof[ia], w))
+        return jnp.concatenate(parts)
+
+    def linear_guess(self, forcing):
+        """The harmonic response of the system linearised at rest (open gaps, floating
+        impact absorbers, smoothed friction at its initial slope), at ``t = 0``."""
+        rest = self.rest_state()
+        A = jax.jacfwd(self._rate)(rest, 0.0)
+        b = jax.jacfwd(self._rate, argnums=1)(rest, 0.0)
+        n = A.shape[0]
+        X = jnp.linalg.solve(1j * forcing.omega * jnp.eye(n) - A,
+                             (b * forcing.amplitude).astype(complex))
+        return finite_or_zero(jnp.imag(X))  # F0 sin(ωt) = Im(F0 e^{iωt})
+
+    def stiffness_rate(self):
+        st = self.structure
+        MK = self.mass_inverse @ st.stiffness
+        MC = self.mass_inverse @ st.damping
+        rate = jnp.maximum(jnp.sqrt(jnp.linalg.norm(MK, 2)), jnp.linalg.norm(MC, 2))
+        hm = self._host_masses()
+        for e, (ia, _) in zip(self.elements, self._dofs()):
+            rate = jnp.maximum(rate, e.stiffness_rate(hm[ia]))
+        return rate
+
+    def oscillation_rate(self):
+        hm = self._host_masses()
+        rates = [e.oscillation_rate(hm[ia]) for e, (ia, _) in zip(self.elements, self._dofs())]
+        return jnp.max(jnp.stack(rates)) if rates else jnp.zeros(())
+
+    # -- what is measured ------------------------------------------------------------------
+    def _absorbers(self):
+        return [(nm, e, o) for nm, e, o in zip(self.element_names, self.elements,
+                                               self._offsets()[0]) if e.num_strokes]
+
+    @property
+    def output_names(self) -> tuple:
+        """The structure's degrees of freedom, then each absorber's (absolute) position."""
+        return tuple(self.structure.dof_names) + tuple(nm for nm, _, _ in self._absorbers())
+
+    def outputs(self, s):
+        x = self.structure.dof_map @ s[:self.num_coords]
+        hosts = [x[self.structure.dof_index(e.dof)] + e.strokes(s[o:o + e.num_states])[0]
+                 for _, e, o in self._absorbers()]
+        return jnp.concatenate([x, jnp.stack(hosts)]) if hosts else x
+
+    def observable(self, s):
+        return self.observe @ (self.structure.dof_map @ s[:self.num_coords])
+
+    def strokes(self, s):
+        parts = [e.strokes(s[o:o + e.num_states]) for _, e, o in self._absorbers()]
+        return jnp.concatenate(parts) if parts else jnp.zeros((0,), s.dtype)
+
+    def penetrations(self, s):
+        parts = [e.penetrations(xe, ve, z)
+                 for e, (xe, ve, z) in zip(self.elements, self._element_views(s))]
+        return jnp.concatenate(parts) if parts else jnp.zeros((0,), s.dtype)
+
+    def floating_pairs(self, stroke_max):
+        counts = [e.floats(stroke_max[i:i + 1]) for i, (_, e, _) in
+                  enumerate(self._absorbers())]
+        return sum(counts) if counts else jnp.zeros((), int)
+
+    # -- parameters ------------------------------------------------------------------------
+    def parameter_path(self, name: str) -> str:
+        head, _, field = name.partition(".")
+        if head in self.element_names and field:
+            i = self.element_names.index(head)
+            return f"elements.{i}." + self.elements[i].aliases().get(field, field)
+        return name
+
+    def parameter_names(self) -> list:
+        return [f"{nm}.{p}" for nm, e in zip(self.element_names, self.elements)
+                for p in e.parameter_names()]
+

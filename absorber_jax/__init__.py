@@ -9,7 +9,11 @@ import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
-from . import presets  # noqa: E402
+from ._core.cache import setup_on_import as _setup_cache  # noqa: E402
+
+_setup_cache()  # the persistent compilation cache (absorber_jax._core.cache)
+
+from . import objectives, presets  # noqa: E402
 from ._continuation.continuation import (  # noqa: E402
     Bifurcation,
     Branch,
@@ -19,9 +23,10 @@ from ._continuation.continuation import (  # noqa: E402
 )
 from ._core.devices import use_cpu_cores  # noqa: E402
 from ._core.status import Status, describe  # noqa: E402
+from ._design.base import band_objective, smooth_max  # noqa: E402
 from ._design.peak import BandPeak, exact_peak  # noqa: E402
 from ._design.robust import Coexisting, RobustPeak, robust_peak  # noqa: E402
-from ._design.tune import band_objective, plot_tuning, smooth_max, tune, value_and_grad  # noqa: E402
+from ._design.tune import plot_tuning, tune, value_and_grad  # noqa: E402
 from ._integration.simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._io.plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
 from ._laws.contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
@@ -83,6 +88,7 @@ __all__ = [
     "plot_frequency_response",
     "Status", "Stribeck", "Trajectory", "choose_solver", "describe", "effective_mass",
     "equivalent_hertz_stiffness", "hertz_contact_time", "hertz_stiffness",
-    "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "presets", "simulate",
+    "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "objectives",
+    "presets", "simulate",
     "use_cpu_cores",
 ]

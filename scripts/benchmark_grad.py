@@ -15,7 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import absorber_jax as aj
-from absorber_jax._design.tune import tune as _design
+from absorber_jax._design import base as _base
+from absorber_jax._design import tune as _design
 from absorber_jax._periodic.steady import make_config
 from absorber_jax._systems.forcing import Harmonic
 
@@ -30,10 +31,10 @@ def main(repeats):
 
     @jax.jit
     def forward(system):
-        a, _, st, _ = _design.band_amplitudes(system, om, amp, guesses, cfg, 1e-7, 40)
-        return _design.band_objective(a, "peak"), st
+        a, _, st, _ = _base.band_amplitudes(system, om, amp, guesses, cfg, 1e-7, 40)
+        return _base.band_objective(a, "peak"), st
 
-    reparam = _design.Reparam(lo=jnp.zeros(3), hi=jnp.ones(3), bounded=jnp.zeros(3, bool),
+    reparam = _base.Reparam(lo=jnp.zeros(3), hi=jnp.ones(3), bounded=jnp.zeros(3, bool),
                                identity=jnp.zeros(3, bool))
     u = jnp.log(jnp.array([float(aj.get_param(system, k)) for k in names]))
 

@@ -53,11 +53,13 @@ def main(out, quick):
         tmd = aj.ImpactAbsorber(M=M, k=k, c=0.0, m=m, gap=0.0,
                                 contact=aj.KelvinVoigt(stiffness=1.1 * k1, damping=0.7 * c1))
         _, h_lin = aj.tune(tmd, ["k1", "c1"], (0.5 * wn, 1.5 * wn), amplitude=1.0,
-                           objective="exact_peak", steps=30, n_freq=24, confirm=False)
+                           objective=aj.objectives.ExactPeak(n_freq=24), steps=30,
+                           confirm=False)
         imp = aj.ImpactAbsorber(M=M, k=k, c=0.1, m=m, gap=1e-3,
                                 contact=aj.KelvinVoigt(stiffness=400.0, damping=20.0))
         _, h_imp = aj.tune(imp, ["k1", "c1"], (25.0, 45.0), amplitude=2.0,
-                           steps=5 if quick else 25, n_freq=16 if quick else 32, confirm=False)
+                           steps=5 if quick else 25, confirm=False,
+                           objective=aj.objectives.SmoothPeak(n_freq=16 if quick else 32))
         row = {"mu": float(mu), "tmd_peak_static": float(np.nanmin(h_lin["objective"]) * k),
                "exact_h_infinity_peak_static": float(exact_h_infinity_peak(mu)),
                "tmd_evaluations": len(h_lin["objective"]),

@@ -17,7 +17,7 @@ def tmd(mu, f, zeta):
     a Kelvin–Voigt contact is a spring and dashpot in both directions."""
     m = mu * M
     ka = m * (f * WN) ** 2
-    law = aj.KelvinVoigt(stiffness=ka, damping=2 * zeta * np.sqrt(ka * m))
+    law = aj.KelvinVoigt(stiffness=ka, damping=2 * zeta * np.sqrt(ka * m), adhesive=True)
     return aj.ImpactAbsorber(M=M, k=K, c=0.0, m=m, gap=0.0, contact=law)
 
 
@@ -120,6 +120,27 @@ def test_minimax_tuning_reaches_the_h_infinity_optimum_at_mu_0_2():
     _check_the_h_infinity_optimum(0.2, (60.0, 140.0))
 
 
+def test_tune_at_its_defaults_reaches_the_h_infinity_optimum():
+    """``tune`` with no objective, optimiser or tolerance given: the H-infinity tuned mass
+    damper (mu = 0.05) from a design 5 % detuned with half the damping, against the closed
+    form of Nishihara & Asami (and an independent Nelder-Mead on the receptance)."""
+    mu = 0.05
+    f_ref, z_ref, peak_ref = h_infinity(mu)
+    tuned, hist = aj.tune(tmd(mu, 1.05 * f_ref, 0.5 * z_ref), ["k1", "c1"], (70.0, 130.0),
+                          amplitude=1.0)
+    m = mu * M
+    k1, c1 = float(aj.get_param(tuned, "k1")), float(aj.get_param(tuned, "c1"))
+    f, z = np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m))
+    peak = max(h for _, h in peaks(mu, f, z))            # the tuned design's closed-form peak
+    print(f"tune defaults: f {f / f_ref - 1:.2e}, zeta {z / z_ref - 1:.2e}, "
+          f"peak {peak / peak_ref - 1:.2e} off the H-infinity optimum")
+    np.testing.assert_allclose(f, f_ref, rtol=1e-3)
+    np.testing.assert_allclose(z, z_ref, rtol=1e-3)
+    np.testing.assert_allclose(peak, peak_ref, rtol=1e-3)
+    np.testing.assert_allclose(min(hist["objective"]) * K, peak_ref, rtol=1e-3)
+    assert hist["settles_on"]["is_designed"]             # confirm ran, by default
+
+
 def _check_the_h_infinity_optimum(mu, band):
     f_ref, z_ref, peak_ref = h_infinity(mu)
     f_na, z_na = nishihara_asami(mu)
@@ -127,7 +148,7 @@ def _check_the_h_infinity_optimum(mu, band):
     # start 5 % off in frequency and with half the damping
     system = tmd(mu, 1.05 * f_ref, 0.5 * z_ref)
     tuned, hist = aj.tune(system, ["k1", "c1"], band, amplitude=1.0,
-                          objective="exact_peak", steps=40, n_freq=16, confirm=False,
+                          objective=aj.objectives.ExactPeak(n_freq=16), steps=40, confirm=False,
                           **TIGHT)
     m = mu * M
     k1, c1 = hist["best"]["k1"], hist["best"]["c1"]
@@ -160,11 +181,15 @@ def test_exact_peak_bad_input():
         aj.tune(system, ["k1"], (70.0, 70.0), amplitude=1.0, objective="exact_peak")
     with pytest.raises(ValueError, match="robust_peak.*>= 3 frequencies"):
         aj.value_and_grad(system, ["k1"], [70.0, 80.0], amplitude=1.0, objective="robust_peak")
-    with pytest.raises(ValueError, match="tune.probes must be a positive integer"):
-        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, objective="robust_peak",
-                probes=0)
-    with pytest.raises(ValueError, match="stability_margin needs"):
+    with pytest.raises(ValueError, match="RobustPeak.probes must be an integer >= 1"):
+        aj.objectives.RobustPeak(probes=0)
+    with pytest.raises(ValueError, match="ExactPeak.peaks must be in"):
+        aj.objectives.ExactPeak(n_freq=4, peaks=5)
+    # options that moved into the objective: the message names the new form
+    with pytest.raises(TypeError, match=r"objective=aj.objectives.ExactPeak\(stability_margin"):
         aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, stability_margin=0.1)
+    with pytest.raises(TypeError, match=r"starts=\(grid, n_best\)"):
+        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, n_starts=2)
 
 
 def test_robust_objective_reports_the_coexisting_upper_branch():
@@ -214,8 +239,9 @@ def test_robust_tuning_removes_the_coexisting_upper_branch():
 
     c, F0 = HARD["c"], HARD["F0"]
     tuned, hist = aj.tune(hardening(), ["contact1.gap"], (1.1, 1.2), amplitude=F0,
-                          objective="robust_peak", n_freq=8, probes=3, probe_samples=12,
-                          steps=6, rounds=2, bounds={"contact1.gap": (0.05, 2.0)},
+                          objective=aj.objectives.RobustPeak(n_freq=8, probes=3,
+                                                                probe_samples=12, rounds=2),
+                          steps=6, bounds={"contact1.gap": (0.05, 2.0)},
                           confirm=False)
     first, last = hist["rounds"][0], hist["rounds"][-1]
     linear = F0 / abs(1 - 1.1**2 + 1j * c * 1.1)
@@ -242,8 +268,8 @@ def test_global_starts_stability_margin_and_settling():
     f_ref, z_ref, peak_ref = h_infinity(0.05)
     starts = {"k1": [300.0, 450.0, 600.0], "c1": [0.3, 1.0, 3.0]}
     tuned, hist = aj.tune(tmd(0.05, 1.3, 0.03), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
-                          objective="exact_peak", steps=30, n_freq=16, tol=1e-9, starts=starts,
-                          n_starts=2, stability_margin=0.01, confirm_points=4)
+                          objective=aj.objectives.ExactPeak(n_freq=16, stability_margin=0.01),
+                          steps=30, tol=1e-9, starts=(starts, 2), confirm=(4, 8))
     grid = hist["starts"]["grid_peak"]
     designs = hist["starts"]["designs"]
     assert hist["starts"]["tuned_from"] == [designs[i] for i in np.argsort(grid)[:2]]
@@ -258,6 +284,6 @@ def test_global_starts_stability_margin_and_settling():
     np.testing.assert_allclose(settle["worst_stable"] * K, peak_ref, rtol=1e-3)
     # a margin no design meets: nothing is feasible, and the history says so
     _, hist = aj.tune(tmd(0.05, 1.0, 0.1), ["k1", "c1"], (70.0, 130.0), amplitude=1.0,
-                      objective="exact_peak", steps=3, n_freq=16, tol=1e-9,
-                      stability_margin=0.999, confirm=False)
+                      objective=aj.objectives.ExactPeak(n_freq=16, stability_margin=0.999),
+                      steps=3, tol=1e-9, confirm=False)
     assert not hist["feasible"] and hist["unstable"] >= 1

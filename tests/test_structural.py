@@ -381,8 +381,8 @@ def test_three_tuned_mass_dampers_tuned_together_lower_the_top_floor_peak():
         vm = aj.value_and_grad(aj.replace_params(sysm, {n: p - h}), names, om, amplitude=1.0)[0]
         fd = (vp - vm) / (2 * h)
         assert abs(g[n] - fd) <= 1e-5 * abs(fd), (n, g[n], fd)
-    tuned, hist = aj.tune(sysm, names, band, amplitude=1.0, steps=12, n_freq=24,
-                          confirm=False)
+    tuned, hist = aj.tune(sysm, names, band, amplitude=1.0, steps=12,
+                          objective=aj.objectives.SmoothPeak(n_freq=24), confirm=False)
     assert hist["objective"][-1] < 0.9 * hist["objective"][0]
 
     def dense_peak(system):
@@ -458,8 +458,9 @@ def test_tuned_mass_dampers_tuned_together_on_the_exact_peak():
     sysm = aj.StructuralSystem(b, els, load=dict(zip(b.dof_names, MASSES)), observe="floor3")
     names = [f"tmd{i}.{p}" for i in (1, 2, 3) for p in ("k", "c")]
     band = (15.0, 110.0)
-    tuned, hist = aj.tune(sysm, names, band, amplitude=1.0, objective="exact_peak", peaks=6,
-                          steps=40, n_freq=24, tol=1e-9, confirm=False)
+    tuned, hist = aj.tune(sysm, names, band, amplitude=1.0, steps=40,
+                          objective=aj.objectives.ExactPeak(n_freq=24, peaks=6), tol=1e-9,
+                          confirm=False)
 
     def closed_form(system, w):
         d = [(e.dof, float(e.m), float(e.k), float(e.c)) for e in system.elements]

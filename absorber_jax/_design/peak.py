@@ -36,9 +36,9 @@ import numpy as np
 from .._core.status import Status
 from .._integration.flow import state_scale
 from .._periodic.orbit import sample_orbit
-from .._periodic.shooting import Shooting
 from .._periodic.steady import solve_point
 from .._systems.forcing import Harmonic
+from .base import Reparam, check_design, shooting_for_design
 
 # kinds of a peak slot
 LOCATED, EDGE, FILLER, UNBRACKETED = 0, 1, 2, 3
@@ -207,10 +207,6 @@ def locate(evaluate_slots, omegas, grid, kind, j, xtol, max_iter):
                                                        (x_n, x), (st_n, st)))
         done = upd(stop, done)
     return w, amp, grad, x, st, it
-
-
-def shooting_for_design(tol, newton_steps):
-    return Shooting(tol=tol, newton_steps=newton_steps, retry=False)
 
 
 class BandPeak(eqx.Module):
@@ -402,7 +398,6 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     from .._core.checks import check_scalar, require_x64
     from .._periodic.steady import check_system_and_forcing, make_config
     from .._systems.params import get_param
-    from .tune import Reparam, _check
 
     require_x64("exact_peak")
     check_system_and_forcing(system, Harmonic(amplitude=1.0, omega=1.0), "exact_peak")
@@ -417,7 +412,7 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     omegas = np.linspace(float(lo), float(hi), n_freq)
     names = tuple(params)
     if names:
-        names, _ = _check(system, names, omegas, "peak")
+        names, _ = check_design(system, names, omegas, "peak")
     p0 = jnp.array([float(get_param(system, k)) for k in names])
     cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
                       rtol, atol)

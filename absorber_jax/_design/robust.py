@@ -20,6 +20,8 @@ import numpy as np
 
 from .._core.status import Status
 from .._systems.forcing import Harmonic
+from .base import Reparam
+from .peak import evaluate_points, exact_peak
 
 
 class Coexisting(eqx.Module):
@@ -88,8 +90,6 @@ def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probe
     (:func:`attractors`)."""
     from .._periodic.steady import make_config
     from .._systems.params import get_param
-    from .peak import evaluate_points, exact_peak
-    from .tune import Reparam
 
     if not isinstance(probes, int) or probes < 1:
         raise ValueError(f"robust_peak.probes must be a positive integer, got {probes!r}")

@@ -36,75 +36,20 @@ import numpy as np
 from .._core.checks import check_scalar, require_x64
 from .._core.status import Status
 from .._periodic.shooting import Shooting
-from .._periodic.steady import make_config, solve_point
+from .._periodic.steady import make_config
 from .._systems.forcing import Harmonic
-from .._systems.params import get_param, replace_params, resolve
+from .._systems.params import get_param, replace_params
+from .base import (
+    Reparam,
+    band_amplitudes,
+    band_objective,
+    check_design,
+)
+from .objectives import SmoothPeak, as_objective
+from .peak import design_system, evaluate_points, exact_peak, peak_core
+from .robust import robust_peak, stable_responses
 
-OBJECTIVES = ("peak", "mean_square", "amplitude", "exact_peak", "robust_peak")
 _TRACES = {"tune_step": 0}
-
-
-def smooth_max(a, softness=2e-3):
-    """``τ logsumexp(a/τ) - τ log F`` with ``τ = softness · max(a)`` (a smooth lower bound of
-    ``max(a)``, within ``τ log F`` of it)."""
-    tau = softness * jnp.max(a)
-    return tau * jax.nn.logsumexp(a / tau) - tau * jnp.log(a.shape[-1])
-
-
-def band_objective(amplitudes, objective="peak", softness=2e-3):
-    if objective == "peak":
-        return smooth_max(amplitudes, softness)
-    if objective == "mean_square":
-        return jnp.mean(amplitudes**2)
-    if objective == "amplitude":
-        return amplitudes[0]
-    if objective in ("exact_peak", "robust_peak"):
-        raise ValueError(f"objective {objective!r} is not a function of grid amplitudes: use "
-                         f"{objective}(...) or tune(..., objective={objective!r})")
-    raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
-
-
-class Reparam(eqx.Module):
-    """Unconstrained ``u`` → parameter: ``lo + (hi - lo) sigmoid(u)`` with bounds, else
-    ``exp(u)`` (positive); where ``identity``, ``u`` is the parameter itself (exact_peak's
-    plain evaluation, which then shares tune's compilation)."""
-
-    lo: jax.Array
-    hi: jax.Array
-    bounded: jax.Array
-    identity: jax.Array
-
-    @classmethod
-    def plain(cls, n):
-        """The identity map on ``n`` parameters."""
-        return cls(lo=jnp.zeros(n), hi=jnp.ones(n), bounded=jnp.zeros(n, bool),
-                   identity=jnp.ones(n, bool))
-
-    def forward(self, u):
-        scaled = jnp.where(self.bounded, self.lo + (self.hi - self.lo) * jax.nn.sigmoid(u),
-                           jnp.exp(jnp.where(self.identity, 0.0, u)))
-        return jnp.where(self.identity, u, scaled)
-
-    def inverse(self, p):
-        q = jnp.clip((p - self.lo) / jnp.where(self.bounded, self.hi - self.lo, 1.0),
-                     1e-9, 1 - 1e-9)
-        u = jnp.where(self.bounded, jnp.log(q) - jnp.log1p(-q), jnp.log(jnp.maximum(p, 1e-300)))
-        return jnp.where(self.identity, p, u)
-
-
-def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
-    """Steady primary amplitudes at ``omegas`` (vmapped shooting, differentiable in forward
-    mode). ``guesses``: internal states (NaN: use the linear guess)."""
-    from .peak import shooting_for_design
-
-    method = shooting_for_design(tol, newton_steps)
-
-    def one(w, g):
-        forcing = Harmonic(amplitude=amplitude, omega=w)
-        res = solve_point(system, forcing, method, cfg, guess=g, with_floquet=False)
-        return res.amplitude, system.to_internal(res.state), res.status, res.period_multiple
-
-    return jax.vmap(one)(omegas, guesses)
 
 
 def _amplitudes_fn(system, names, reparam, omegas, amplitude, guesses, cfg, tol,
@@ -153,10 +98,8 @@ def value_and_grad(system, params, omegas, *, amplitude, objective="peak", softn
     units), e.g. ``value_and_grad(system, ["k1", "c1"], omegas, amplitude=2.0)``.
 
     Returns ``(value, {name: dvalue/dname}, status per frequency)``."""
-    names, omegas = _check(system, params, omegas, objective)
+    names, omegas = check_design(system, params, omegas, objective)
     if objective in ("exact_peak", "robust_peak"):
-        from .peak import exact_peak
-        from .robust import robust_peak
 
         if omegas.size < 3:
             raise ValueError(f"objective {objective!r} needs a grid of >= 3 frequencies")
@@ -205,88 +148,99 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
     return seeds
 
 
-def _check(system, params, omegas, objective):
-    if objective not in OBJECTIVES:
-        raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
-    if not params:
-        raise ValueError("params must name at least one parameter, e.g. ['k1', 'c1']")
-    names = tuple(params)
-    for k in names:
-        resolve(system, k)
-    om = np.atleast_1d(np.asarray(omegas, dtype=float))
-    if om.ndim != 1 or om.size == 0 or np.any(om <= 0) or np.any(np.diff(om) <= 0):
-        raise ValueError("omegas must be a non-empty, strictly increasing grid of positive "
-                         "frequencies [rad/s]")
-    return names, om
+_MOVED = {"n_freq": "n_freq", "softness": "softness", "peaks": "peaks", "modes": "modes",
+          "stability_margin": "stability_margin", "probes": "probes",
+          "probe_samples": "probe_samples", "rounds": "rounds"}
 
 
-def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, steps=100,
-         n_freq=64, bounds=None, softness=2e-3, peaks=2, tol=1e-7, rtol=1e-10, atol=1e-10,
-         newton_steps=40, solver=None, progress=False, confirm=True, confirm_points=12,
-         confirm_samples=8, stability_margin=None, starts=None, n_starts=3, modes=True,
-         probes=8, probe_samples=16, rounds=3, callback=None):
-    """Tune absorber parameters to minimise the primary's steady-state amplitude over a band.
+def tune(system, params, band, *, amplitude, objective=None, optimizer=None, steps=100,
+         bounds=None, starts=None, tol=1e-7, rtol=1e-10, atol=1e-10, newton_steps=40,
+         solver=None, progress=False, confirm=True, callback=None, **moved):
+    """Tune absorber parameters to minimise the steady-state amplitude of the system's
+    observable over a frequency band.
 
     **Arguments**
 
     - ``system``: the starting design; ``params``: names to tune (``"k1"``, ``"c1"``, ``"m"``,
-      ``"gap"``, ``"N"``, ``"k2"``, ``"c2"``, ``"mu"``, ...).
-    - ``band``: ``(lo, hi)`` [rad/s], sampled at ``n_freq`` points; ``amplitude``: F0 [N].
-    - ``objective``:
-
-      - ``"exact_peak"``: the band's peak located exactly (:func:`exact_peak`: the zero of
-        ``dA/dω`` bracketed on the grid, gradient by the envelope theorem), over ``peaks``
-        slots (the tallest local maxima).  Minimised by default as the minimax problem it is,
-        ``min t`` subject to ``A_j(θ) <= t`` for every slot, by SLSQP on the epigraph, which
-        lands on the equal-peak optimum rather than zigzagging between the peaks.  Every grid
-        point is a constraint too, and with ``modes`` (default) the grid follows the design's
-        lightly damped modes (:func:`exact_peak`), so that a design cannot hide a sharp
-        resonance between grid points;
-      - ``"robust_peak"``: the worst *stable* response the structure can settle on
-        (:func:`robust_peak`): ``"exact_peak"`` plus the coexisting responses that attractor
-        maps at ``probes`` frequencies (``probe_samples`` initial states each) find.  Each
-        period-1 one larger than what the objective sees is followed by shooting as the
-        design moves (one more minimax constraint, with its gradient); the maps run again
-        at each result, and a new larger response starts another of at most ``rounds``
-        minimax rounds (``history["rounds"]``, ``history["robust"]``).  A response of longer
-        period is reported (``history["robust"]["longer_period"]``), not followed;
-      - ``"peak"``: the smooth maximum of the grid (bias bounded by ``τ log n_freq``);
-      - ``"mean_square"``; ``"amplitude"`` (``band = (ω, ω)``).
-    - ``optimizer``: an optax transformation (default for the grid objectives: Adam, learning
-      rate 0.05 with cosine decay over ``steps``) acting on the reparametrised values:
-      ``log p`` for positive parameters, ``logit`` of the position within
-      ``bounds[name] = (lo, hi)`` otherwise.  With ``"exact_peak"``/``"robust_peak"`` an
-      optax optimiser descends the largest slot instead of the minimax solve.
+      ``"gap"``, ``"N"``, ``"k2"``, ``"c2"``, ``"mu"``, ... : :func:`parameter_names`).
+    - ``band``: ``(lo, hi)`` [rad/s]; ``amplitude``: the force amplitude F0 [N].
+    - ``objective``: an objective object from :mod:`absorber_jax.objectives` carrying its
+      options; default :class:`~absorber_jax.objectives.ExactPeak` ``()``: the band's peaks
+      located exactly and minimised as a minimax problem by SLSQP on the epigraph, which
+      lands on the equal-peak (H∞) optimum.  :class:`~absorber_jax.objectives.RobustPeak`
+      adds the stable coexisting responses attractor maps find;
+      :class:`~absorber_jax.objectives.SmoothPeak` and
+      :class:`~absorber_jax.objectives.MeanSquare` are grid objectives descended by
+      ``optimizer``.  The names ``"exact_peak"``, ``"robust_peak"``, ``"peak"``,
+      ``"mean_square"`` stand for those objects with their default options.
+    - ``optimizer``: an optax transformation acting on the reparametrised values (``log p``
+      for positive parameters, ``logit`` of the position within ``bounds[name]``).  Default
+      for the grid objectives: Adam, learning rate 0.05 with cosine decay over ``steps``; for
+      the exact objectives ``None`` means the minimax solve, an optax optimiser there descends
+      the largest peak instead.
     - ``steps``: optimiser steps (SLSQP iterations for the minimax solve).
-    - ``stability_margin``: with ``"exact_peak"``/``"robust_peak"``, a design whose orbit at a
-      located peak has a Floquet multiplier of modulus above ``1 - stability_margin`` is
-      infeasible: the minimax line search backs off from it and it is never returned
-      (``history["unstable"]`` counts them).
-    - ``starts``: global starts, ``{name: values}`` for some or all tuned parameters: the
-      grid of their combinations (the others at the starting design) is evaluated on the
-      band's grid in one vmapped call per design chunk, the ``n_starts`` best designs are each
-      tuned, and the best result is returned (``history["starts"]`` holds the grid).
-    - ``modes``: with the exact objectives, grid points at the design's lightly damped modes
-      (:func:`exact_peak`); ``probes``, ``probe_samples``, ``rounds``: the attractor maps
-      and exchange rounds of ``"robust_peak"``.
-    - ``progress``: tqdm bar; ``confirm``: re-check the curves before and after with marching
-      (an independent method) on ``confirm_points`` frequencies, and march from
-      ``confirm_samples`` initial states at the tuned design's peak frequency: the responses
-      the structure settles on there (``history["settles_on"]``).
+    - ``bounds``: ``{name: (lo, hi)}`` in the parameters' units; unbounded parameters must be
+      positive.
+    - ``starts``: global starts, ``{name: values}`` for some or all tuned parameters: the grid
+      of their combinations is evaluated on the band in vmapped calls, the 3 best designs are
+      each tuned and the best result returned (``history["starts"]``); a pair
+      ``(grid, n_best)`` keeps ``n_best`` instead of 3.
+    - ``tol``, ``newton_steps``: shooting tolerance (scaled max-norm of the period-map
+      residual) and Newton iterations; ``rtol``, ``atol``, ``solver``: the integration.
+    - ``progress``: a tqdm bar; ``callback(step, params, value)`` after each evaluation.
+    - ``confirm``: re-check the curves before and after by marching (an independent method)
+      on 12 frequencies and march from 8 initial states at the tuned design's peak: the
+      responses it settles on (``history["settles_on"]``); a pair ``(points, samples)`` sets
+      those counts.
 
     **Returns** ``(tuned_system, history)``; ``history`` holds per evaluation ``objective``,
-    ``params`` (dict of lists), ``grad_norm``, ``failed`` (frequencies that did not converge),
-    ``nonsmooth``, (``"exact_peak"``) ``peaks`` and ``peak_omegas`` per slot; plus ``omegas``,
-    ``amplitude_before``/``after`` and, with ``confirm``, the marching check.
+    ``params`` (dict of lists), ``grad_norm``, ``failed`` (frequencies that did not
+    converge), ``nonsmooth``, and for the exact objectives ``peaks`` and ``peak_omegas`` per
+    slot; plus ``omegas``, ``amplitude_before``/``after``, ``best`` and, with ``confirm``, the
+    marching check.
 
     ```python
-    import absorber_jax as aj, optax
+    import absorber_jax as aj
     system, _ = aj.presets.impact("kelvin_voigt")
     tuned, hist = aj.tune(system, ["k1", "c1"], (25.0, 45.0), amplitude=2.0, steps=30)
-    tuned, hist = aj.tune(system, ["k1", "c1"], (25.0, 45.0), amplitude=2.0,
-                          objective="exact_peak", steps=30)
+    hist["best"]            # {"k1": ..., "c1": ...}
     ```
     """
+    if moved:
+        name = next(iter(moved))
+        if name in _MOVED:
+            raise TypeError(f"tune() got an unexpected keyword argument {name!r}: the "
+                            f"objective carries it, e.g. objective=aj.objectives.ExactPeak("
+                            f"{name}=...) (or SmoothPeak, MeanSquare, RobustPeak)")
+        if name in ("n_starts", "confirm_points", "confirm_samples"):
+            form = ("starts=(grid, n_best)" if name == "n_starts"
+                    else "confirm=(points, samples)")
+            raise TypeError(f"tune() got an unexpected keyword argument {name!r}: use {form}")
+        raise TypeError(f"tune() got an unexpected keyword argument {name!r}")
+    # "amplitude": the band (ω, ω) of one point, whose smooth maximum is its amplitude
+    obj = SmoothPeak() if objective == "amplitude" else as_objective(objective, "tune")
+    opts = dict(n_freq=64, softness=2e-3, peaks=2, modes=True, stability_margin=None,
+                probes=8, probe_samples=16, rounds=3)
+    opts.update(obj.options())
+    n_starts = 3
+    if isinstance(starts, tuple):
+        if len(starts) != 2:
+            raise ValueError("tune.starts must be a dict {name: values} or a pair "
+                             "(dict, n_best)")
+        starts, n_starts = starts
+    points, samples = (12, 8) if confirm is True or confirm is False else confirm
+    return _tune(system, params, band, amplitude=amplitude, objective=obj.kind,
+                 optimizer=optimizer, steps=steps, bounds=bounds, tol=tol, rtol=rtol,
+                 atol=atol, newton_steps=newton_steps, solver=solver, progress=progress,
+                 confirm=bool(confirm), confirm_points=points, confirm_samples=samples,
+                 starts=starts, n_starts=n_starts, callback=callback, **opts)
+
+
+def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_freq, bounds,
+          softness, peaks, tol, rtol, atol, newton_steps, solver, progress, confirm,
+          confirm_points, confirm_samples, stability_margin, starts, n_starts, modes, probes,
+          probe_samples, rounds, callback):
+    """:func:`tune` with the objective's options unpacked (``objective`` its ``kind``)."""
     require_x64("tune")
     import optax
 
@@ -320,7 +274,7 @@ def tune(system, params, band, *, amplitude, objective="peak", optimizer=None, s
     if exact and not (isinstance(peaks, int) and 1 <= peaks <= n_freq):
         raise ValueError(f"tune.peaks must be an integer in [1, n_freq], got {peaks!r}")
     omegas = np.linspace(lo, hi, n_freq) if hi > lo else np.array([float(lo)])
-    names, omegas = _check(system, params, omegas, "peak" if exact else objective)
+    names, omegas = check_design(system, params, omegas, "peak" if exact else objective)
     bounds = dict(bounds or {})
     for k in bounds:
         if k not in names:
@@ -457,7 +411,8 @@ def _tune_from_starts(system, params, band, starts, n_starts, progress, kw):
     for i in order:
         # the independent checks run once, on the best result (below)
         start = replace_params(system, combos[i], check=True)
-        tuned, hist = tune(start, params, band, progress=progress, **dict(kw, confirm=False))
+        tuned, hist = _tune(start, params, band, progress=progress,
+                           **dict(kw, confirm=False, starts=None, n_starts=1))
         val = np.nanmin(hist["objective"])
         if best is None or val < best[0]:
             best = (val, tuned, hist)
@@ -497,7 +452,6 @@ class _Evaluator:
         system, names, reparam = self.args
         om, amp = jnp.asarray(self.omegas), jnp.asarray(self.amplitude, dtype=float)
         if self.exact:
-            from .peak import peak_core
 
             out = peak_core(system, names, reparam, u, om, amp, guesses, self.cfg,
                             float(self.tol), int(self.newton_steps), int(self.peaks), 1e-10, 40,
@@ -515,7 +469,6 @@ class _Evaluator:
     def _unstable(self, u, res, ok):
         """Slots whose orbit has a multiplier beyond ``1 - margin``."""
         from .._periodic.steady import steady_state
-        from .peak import design_system
 
         sysp = design_system(*self.args, u)
         out = np.zeros(len(ok), bool)
@@ -534,7 +487,6 @@ class _Evaluator:
     def _follow(self, u):
         """Amplitudes, gradients and success of the tracked coexisting responses at ``u``;
         their states move on with the design."""
-        from .peak import evaluate_points
 
         system, names, reparam = self.args
         w, x = self.tracked
@@ -730,8 +682,6 @@ def _robust_rounds(evaluate, band, u0, steps, hist, progress, callback, optimize
     the maps run again at the result and the followed set is rebuilt from them; the rounds
     end when the maps find nothing larger than the exact peak that is not followed, or after
     ``rounds``.  A response of longer period is reported, not followed."""
-    from .peak import design_system
-    from .robust import stable_responses
 
     hist.update(tracked=[], rounds=[])
     system, names, reparam = evaluate.args

@@ -13,7 +13,7 @@ import numpy as np
 from .._core.checks import check_scalar, check_state, check_time_grid, is_traced, require_x64
 from .._core.custom_types import States, Times
 from .._core.custom_types import Status as StatusArray
-from .._core.status import Status, from_diffrax
+from .._core.status import Status, describe, from_diffrax
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractForcing
 from .stickslip import hybrid_solve
@@ -337,7 +337,11 @@ def simulate(
         f(atol),
         None if dt0 is None else f(dt0),
         max_steps,
-        bool(throw),
+        False,    # failures come back as a status; ``throw`` is checked here, on the host
         bool(energy),
     )
-    return Trajectory(**out, solver=name)
+    traj = Trajectory(**out, solver=name)
+    if throw and not is_traced(traj.status) and int(traj.status) != Status.SUCCESS:
+        raise RuntimeError(f"simulate failed: {describe(int(traj.status))} (pass throw=False "
+                           "to get the trajectory up to the failure, with its status)")
+    return traj

@@ -132,6 +132,7 @@ def cmd_tune(args):
 
     import numpy as np
 
+    from .._design.objectives import BY_NAME
     from .._design.tune import plot_tuning, tune
 
     lo, hi, _ = _parse_range(args.band + ":1", "--band")
@@ -143,8 +144,9 @@ def cmd_tune(args):
         bounds[name.strip()] = (b_lo, b_hi)
     amplitude = args.amplitude if args.amplitude is not None else float(forcing.amplitude)
     params = [p.strip() for p in args.params.split(",") if p.strip()]
-    tuned, hist = tune(system, params, (lo, hi), amplitude=amplitude, objective=args.objective,
-                       steps=args.steps, n_freq=args.n_freq, bounds=bounds, progress=True,
+    objective = BY_NAME[args.objective](n_freq=args.n_freq)
+    tuned, hist = tune(system, params, (lo, hi), amplitude=amplitude, objective=objective,
+                       steps=args.steps, bounds=bounds, progress=True,
                        confirm=not args.no_confirm)
     os.makedirs(args.out, exist_ok=True)
     plot_tuning(system, tuned, hist, os.path.join(args.out, "tuning.png"),
@@ -588,8 +590,8 @@ def build_parser():
     t.add_argument("--params", required=True, help="comma-separated, e.g. k1,c1,m")
     t.add_argument("--band", required=True, help="LO:HI [rad/s]")
     t.add_argument("--amplitude", type=float, default=None)
-    t.add_argument("--objective", default="peak",
-                   choices=["peak", "exact_peak", "robust_peak", "mean_square", "amplitude"])
+    t.add_argument("--objective", default="exact_peak",
+                   choices=["exact_peak", "robust_peak", "peak", "mean_square"])
     t.add_argument("--steps", type=int, default=40)
     t.add_argument("--n-freq", type=int, default=32)
     t.add_argument("--set", action="append", metavar="field=value")

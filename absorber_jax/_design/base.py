@@ -1,0 +1,99 @@
+"""Design primitives shared by the objectives and the optimisers: band objectives of grid
+amplitudes, the reparametrisation of bounded and positive parameters, the design's checks and
+the vmapped band amplitudes (shooting, forward-mode differentiable)."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._periodic.shooting import Shooting
+from .._periodic.steady import solve_point
+from .._systems.forcing import Harmonic
+from .._systems.params import resolve
+
+OBJECTIVES = ("peak", "mean_square", "amplitude", "exact_peak", "robust_peak")
+
+
+def smooth_max(a, softness=2e-3):
+    """``τ logsumexp(a/τ) - τ log F`` with ``τ = softness · max(a)`` (a smooth lower bound of
+    ``max(a)``, within ``τ log F`` of it)."""
+    tau = softness * jnp.max(a)
+    return tau * jax.nn.logsumexp(a / tau) - tau * jnp.log(a.shape[-1])
+
+
+def band_objective(amplitudes, objective="peak", softness=2e-3):
+    if objective == "peak":
+        return smooth_max(amplitudes, softness)
+    if objective == "mean_square":
+        return jnp.mean(amplitudes**2)
+    if objective == "amplitude":
+        return amplitudes[0]
+    if objective in ("exact_peak", "robust_peak"):
+        raise ValueError(f"objective {objective!r} is not a function of grid amplitudes: use "
+                         f"{objective}(...) or tune(..., objective={objective!r})")
+    raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
+
+
+class Reparam(eqx.Module):
+    """Unconstrained ``u`` → parameter: ``lo + (hi - lo) sigmoid(u)`` with bounds, else
+    ``exp(u)`` (positive); where ``identity``, ``u`` is the parameter itself (exact_peak's
+    plain evaluation, which then shares tune's compilation)."""
+
+    lo: jax.Array
+    hi: jax.Array
+    bounded: jax.Array
+    identity: jax.Array
+
+    @classmethod
+    def plain(cls, n):
+        """The identity map on ``n`` parameters."""
+        return cls(lo=jnp.zeros(n), hi=jnp.ones(n), bounded=jnp.zeros(n, bool),
+                   identity=jnp.ones(n, bool))
+
+    def forward(self, u):
+        scaled = jnp.where(self.bounded, self.lo + (self.hi - self.lo) * jax.nn.sigmoid(u),
+                           jnp.exp(jnp.where(self.identity, 0.0, u)))
+        return jnp.where(self.identity, u, scaled)
+
+    def inverse(self, p):
+        q = jnp.clip((p - self.lo) / jnp.where(self.bounded, self.hi - self.lo, 1.0),
+                     1e-9, 1 - 1e-9)
+        u = jnp.where(self.bounded, jnp.log(q) - jnp.log1p(-q), jnp.log(jnp.maximum(p, 1e-300)))
+        return jnp.where(self.identity, p, u)
+
+
+def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
+    """Steady primary amplitudes at ``omegas`` (vmapped shooting, differentiable in forward
+    mode). ``guesses``: internal states (NaN: use the linear guess)."""
+    method = shooting_for_design(tol, newton_steps)
+
+    def one(w, g):
+        forcing = Harmonic(amplitude=amplitude, omega=w)
+        res = solve_point(system, forcing, method, cfg, guess=g, with_floquet=False)
+        return res.amplitude, system.to_internal(res.state), res.status, res.period_multiple
+
+    return jax.vmap(one)(omegas, guesses)
+
+
+def shooting_for_design(tol, newton_steps):
+    """The shooting method of design evaluations: no marching retry (a retry's branch switch
+    would make the objective discontinuous; failed points are reseeded instead)."""
+    return Shooting(tol=tol, newton_steps=newton_steps, retry=False)
+
+
+def check_design(system, params, omegas, objective):
+    if objective not in OBJECTIVES:
+        raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
+    if not params:
+        raise ValueError("params must name at least one parameter, e.g. ['k1', 'c1']")
+    names = tuple(params)
+    for k in names:
+        resolve(system, k)
+    om = np.atleast_1d(np.asarray(omegas, dtype=float))
+    if om.ndim != 1 or om.size == 0 or np.any(om <= 0) or np.any(np.diff(om) <= 0):
+        raise ValueError("omegas must be a non-empty, strictly increasing grid of positive "
+                         "frequencies [rad/s]")
+    return names, om

@@ -1,7 +1,8 @@
 """Benchmark (issue 12, item 4): hard contacts, where real impact dampers work.
 
 Scenes: ``ImpactAbsorber(M=1, k=1e3, c=0.5, m=0.2, gap=2e-3)`` with
-``KelvinVoigt(stiffness=2e4, damping=2)`` or ``Hertz(stiffness=1e6, damping=2)``,
+``KelvinVoigt(stiffness=2e4, damping=2, adhesive=True)`` or
+``Hertz(stiffness=1e6, damping=2, adhesive=True)``,
 F0 = 3 N, band 20–45 rad/s.
 
 - **Attractor map at 30 rad/s** (``aj.attractors`` at its defaults: 32 initial states,
@@ -53,8 +54,8 @@ def report(line):
 
 
 def scene(name):
-    contact = (aj.KelvinVoigt(stiffness=2e4, damping=2.0) if name == "kv"
-               else aj.Hertz(stiffness=1e6, damping=2.0))
+    contact = (aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True) if name == "kv"
+               else aj.Hertz(stiffness=1e6, damping=2.0, adhesive=True))
     return aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3, contact=contact)
 
 

@@ -51,12 +51,14 @@ def main(out, quick):
         k1 = m * (wn / (1 + mu)) ** 2
         c1 = 2 * np.sqrt(3 * mu / (8 * (1 + mu) ** 3)) * np.sqrt(k1 * m)
         tmd = aj.ImpactAbsorber(M=M, k=k, c=0.0, m=m, gap=0.0,
-                                contact=aj.KelvinVoigt(stiffness=1.1 * k1, damping=0.7 * c1))
+                                contact=aj.KelvinVoigt(stiffness=1.1 * k1, damping=0.7 * c1,
+                                                       adhesive=True))
         _, h_lin = aj.tune(tmd, ["k1", "c1"], (0.5 * wn, 1.5 * wn), amplitude=1.0,
                            objective=aj.objectives.ExactPeak(n_freq=24), steps=30,
                            confirm=False)
         imp = aj.ImpactAbsorber(M=M, k=k, c=0.1, m=m, gap=1e-3,
-                                contact=aj.KelvinVoigt(stiffness=400.0, damping=20.0))
+                                contact=aj.KelvinVoigt(stiffness=400.0, damping=20.0,
+                                                       adhesive=True))
         _, h_imp = aj.tune(imp, ["k1", "c1"], (25.0, 45.0), amplitude=2.0,
                            steps=5 if quick else 25, confirm=False,
                            objective=aj.objectives.SmoothPeak(n_freq=16 if quick else 32))

@@ -137,7 +137,7 @@ def test_impacts_of_a_hard_contact_are_counted_against_an_event_exact_reference(
     chaotic: the smoothed and the exact contact drift apart after ~2 periods; sampled at the
     plain 64 per period, the count over 40 periods was 30 % low)."""
     system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3,
-                               contact=aj.KelvinVoigt(stiffness=1e6, damping=20.0))
+                               contact=aj.KelvinVoigt(stiffness=1e6, damping=20.0, adhesive=True))
     w = 40.0
     assert samples_per_period(system, w) >= 256
     m = aj.attractors(system, aj.Harmonic(amplitude=2.0, omega=w), samples=3, n_max=1,

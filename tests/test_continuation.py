@@ -20,7 +20,8 @@ def hardening():
     """One DOF, m = k = 1, c = 0.02, a one-sided spring k_c = 3 beyond q = 0.5."""
     st = aj.structure_from_matrices(np.eye(1), np.eye(1), damping=HARD["c"] * np.eye(1))
     stop = aj.Contact("x1", gap=HARD["g"], contact=aj.KelvinVoigt(stiffness=HARD["k_c"],
-                                                                  damping=0.0))
+                                                                  damping=0.0,
+                                                                  adhesive=True))
     return aj.StructuralSystem(st, [stop], load="x1")
 
 
@@ -283,7 +284,7 @@ def test_hard_contact_branch_takes_its_section_where_the_absorber_flies_free():
     import jax.numpy as jnp
 
     system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3,
-                               contact=aj.KelvinVoigt(stiffness=2e4, damping=2.0))
+                               contact=aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True))
     f = aj.Harmonic(amplitude=3.0, omega=28.0)
     brs = aj.band_continuation(system, f, "omega", bounds=(20.0, 45.0), starts=[28.0],
                                fill=0, method=aj.PseudoArclength(max_points=40), rtol=1e-7,

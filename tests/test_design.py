@@ -98,7 +98,8 @@ def test_tmd_tuning_reaches_the_h_infinity_optimum(mu):
     k1_0 = m * (1.05 * f_opt * wn) ** 2
     system = aj.ImpactAbsorber(M=M, k=k, c=0.0, m=m, gap=0.0,
                                contact=aj.KelvinVoigt(stiffness=k1_0,
-                                                      damping=z_opt * np.sqrt(k1_0 * m)))
+                                                      damping=z_opt * np.sqrt(k1_0 * m),
+                                                      adhesive=True))
     tuned, hist = aj.tune(system, ["k1", "c1"], band, amplitude=1.0, steps=120,
                           objective=aj.objectives.SmoothPeak(n_freq=64), confirm=False)
     k1, c1 = hist["best"]["k1"], hist["best"]["c1"]

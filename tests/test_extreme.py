@@ -10,7 +10,7 @@ import absorber_jax as aj
 
 def impact(law=None, **kw):
     base = dict(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3,
-                contact=law or aj.KelvinVoigt(stiffness=400.0, damping=20.0))
+                contact=law or aj.KelvinVoigt(stiffness=400.0, damping=20.0, adhesive=True))
     base.update(kw)
     return aj.ImpactAbsorber(**base)
 
@@ -20,7 +20,8 @@ def friction(law, N=2.0):
                                friction=law)
 
 
-HC = lambda e: aj.HuntCrossley(stiffness=3260.0, damping=aj.hunt_crossley_damping(3260.0, e, 0.1))
+HC = lambda e: aj.HuntCrossley(stiffness=3260.0, damping=aj.hunt_crossley_damping(3260.0, e, 0.1),
+                               adhesive=True)
 
 def lugre(sigma0):
     return aj.LuGre(mu_c=0.5, mu_s=0.6, v_s=1e-2, sigma0=sigma0, sigma1=1e2, sigma2=0.0)
@@ -35,8 +36,10 @@ def lugre(sigma0):
 CASES = {
     "lugre_sigma0_1e6": (friction(lugre(1e6)), 10.0, 50.0, "N"),
     "lugre_sigma0_1e8": (friction(lugre(1e8)), 10.0, 50.0, None),
-    "hertz_steel_1e10": (impact(aj.Hertz(stiffness=1e10, damping=20.0)), 2.0, 47.4, None),
-    "eps_1e-9": (impact(aj.KelvinVoigt(stiffness=400.0, damping=20.0, eps=1e-9)), 2.0, 47.4,
+    "hertz_steel_1e10": (impact(aj.Hertz(stiffness=1e10, damping=20.0,
+                                         adhesive=True)), 2.0, 47.4, None),
+    "eps_1e-9": (impact(aj.KelvinVoigt(stiffness=400.0, damping=20.0, eps=1e-9,
+                                       adhesive=True)), 2.0, 47.4,
                  None),
     "force_1e4": (impact(), 1e4, 47.4, None),
     "absorber_mass_1e-6": (impact(m=1e-6), 2.0, 47.4, None),

@@ -33,12 +33,15 @@ def friction(**kw):
         # negative stiffness or damping
         (lambda: impact(k=-1.0), r"ImpactAbsorber\.k must be in \[0, inf\)"),
         (lambda: friction(c2=-1.0), r"FrictionAbsorber\.c2 must be in \[0, inf\)"),
-        (lambda: aj.KelvinVoigt(stiffness=-400.0, damping=20.0), r"KelvinVoigt\.stiffness"),
-        (lambda: aj.HuntCrossley(stiffness=3260.0, damping=-1.0), r"HuntCrossley\.damping"),
+        (lambda: aj.KelvinVoigt(stiffness=-400.0, damping=20.0,
+                                adhesive=True), r"KelvinVoigt\.stiffness"),
+        (lambda: aj.HuntCrossley(stiffness=3260.0, damping=-1.0,
+                                 adhesive=True), r"HuntCrossley\.damping"),
         (lambda: impact(gap=-1e-3), r"ImpactAbsorber\.gap must be in \[0, inf\)"),
         (lambda: friction(normal_force=-1.0), r"FrictionAbsorber\.normal_force"),
         # eps <= 0
-        (lambda: aj.Hertz(stiffness=3260.0, damping=20.0, eps=0.0), r"Hertz\.eps must be in \(0"),
+        (lambda: aj.Hertz(stiffness=3260.0, damping=20.0, eps=0.0,
+                          adhesive=True), r"Hertz\.eps must be in \(0"),
         (lambda: aj.Coulomb(mu=0.5, eps=-1e-4), r"Coulomb\.eps must be in \(0"),
         (lambda: aj.Dahl(mu_c=0.5, sigma0=1e4, eps=-1e-4), r"Dahl\.eps"),
         # mu_s < mu_c

@@ -15,9 +15,11 @@ RATES = np.array([-0.3, 0.0, 0.2])
 @pytest.mark.parametrize(
     "law, formula",
     [
-        (aj.KelvinVoigt(stiffness=400.0, damping=20.0), lambda d, r: 400 * d + 20 * r),
-        (aj.Hertz(stiffness=3260.0, damping=20.0), lambda d, r: 3260 * d**1.5 + 20 * r),
-        (aj.HuntCrossley(stiffness=3260.0, damping=469.5),
+        (aj.KelvinVoigt(stiffness=400.0, damping=20.0,
+                        adhesive=True), lambda d, r: 400 * d + 20 * r),
+        (aj.Hertz(stiffness=3260.0, damping=20.0,
+                  adhesive=True), lambda d, r: 3260 * d**1.5 + 20 * r),
+        (aj.HuntCrossley(stiffness=3260.0, damping=469.5, adhesive=True),
          lambda d, r: 3260 * d**1.5 + 469.5 * d**1.5 * r),
     ],
 )
@@ -52,7 +54,7 @@ def test_non_adhesive_never_pulls(cls):
 
 
 def test_zero_gap_is_exactly_linear():
-    law = aj.KelvinVoigt(stiffness=400.0, damping=20.0, eps=1e-4)
+    law = aj.KelvinVoigt(stiffness=400.0, damping=20.0, eps=1e-4, adhesive=True)
     system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=0.0, contact=law)
     for u in [-3e-4, -1e-6, 0.0, 2e-5, 1e-3]:
         for w in [-0.2, 0.1]:
@@ -113,7 +115,7 @@ def test_scene_state_holds_only_what_its_law_needs():
 
 
 def test_laws_are_differentiable_at_contact_onset():
-    law = aj.HuntCrossley(stiffness=3260.0, damping=469.5, eps=1e-6)
+    law = aj.HuntCrossley(stiffness=3260.0, damping=469.5, eps=1e-6, adhesive=True)
     g = jax.grad(lambda x: law.wall_force(x, 0.1)[0])
     for x in [-1e-5, 0.0, 1e-6, 1e-3]:
         assert np.isfinite(float(g(x)))

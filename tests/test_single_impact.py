@@ -42,7 +42,7 @@ def single_impact(law, v0, T=0.3):
 
 @pytest.mark.parametrize("c1", [2.0, 20.0])
 def test_kelvin_voigt_contact_time_and_restitution(c1):
-    law = aj.KelvinVoigt(stiffness=400.0, damping=c1, eps=1e-10)
+    law = aj.KelvinVoigt(stiffness=400.0, damping=c1, eps=1e-10, adhesive=True)
     t_c, e = single_impact(law, 0.1)
     meff = m * M / (m + M)
     wd = np.sqrt(400.0 / meff - (c1 / (2 * meff)) ** 2)
@@ -57,7 +57,7 @@ def test_kelvin_voigt_contact_time_and_restitution(c1):
 
 @pytest.mark.parametrize("v0", [0.05, 0.5])
 def test_hertz_contact_time_and_elastic_rebound(v0):
-    law = aj.Hertz(stiffness=3260.0, damping=0.0, eps=1e-10)
+    law = aj.Hertz(stiffness=3260.0, damping=0.0, eps=1e-10, adhesive=True)
     t_c, e = single_impact(law, v0)
     meff = m * M / (m + M)
     expect = 2.9432 * (5 * meff / (4 * 3260.0)) ** 0.4 * v0**-0.2
@@ -69,8 +69,9 @@ def test_hertz_contact_time_and_elastic_rebound(v0):
 def test_equivalent_hertz_stiffness_matches_linear_contact_time():
     v0 = 0.2
     k_hz = aj.equivalent_hertz_stiffness(400.0, 0.0, m, M, v0)
-    t_lin, _ = single_impact(aj.KelvinVoigt(stiffness=400.0, damping=0.0, eps=1e-10), v0)
-    t_hz, _ = single_impact(aj.Hertz(stiffness=k_hz, damping=0.0, eps=1e-10), v0)
+    t_lin, _ = single_impact(aj.KelvinVoigt(stiffness=400.0, damping=0.0, eps=1e-10,
+                                            adhesive=True), v0)
+    t_hz, _ = single_impact(aj.Hertz(stiffness=k_hz, damping=0.0, eps=1e-10, adhesive=True), v0)
     np.testing.assert_allclose(t_hz, t_lin, rtol=2e-4)
 
 
@@ -94,3 +95,17 @@ def test_hertz_stiffness_from_materials():
     np.testing.assert_allclose(
         aj.hertz_stiffness(210e9, 0.3, 210e9, 0.3, 0.01), 4 / 3 * e_star * 0.1, rtol=1e-12
     )
+
+
+@pytest.mark.parametrize("adhesive", [True, False])
+@pytest.mark.parametrize("e", [0.8, 0.4])
+def test_restitution_constructor_gives_the_simulated_restitution(e, adhesive):
+    """KelvinVoigt.from_restitution against a simulated single impact of the two free
+    masses: the adhesive law leaves the wall at zero penetration, the non-adhesive one where
+    its force reaches zero (earlier, so it needs more damping for the same e)."""
+    law = aj.KelvinVoigt.from_restitution(400.0, e, m, M, eps=1e-10, adhesive=adhesive)
+    _, e_sim = single_impact(law, 0.1)
+    print(f"e = {e}, adhesive={adhesive}: simulated {e_sim:.8f}")
+    np.testing.assert_allclose(e_sim, e, rtol=1e-4)
+    other = aj.KelvinVoigt.from_restitution(400.0, e, m, M, adhesive=not adhesive)
+    assert (float(other.damping) > float(law.damping)) == adhesive

@@ -18,7 +18,8 @@ K03 = np.array([[1.0, -1.0], [-1.0, 2.0]])
 
 def nlvib03():
     st = aj.structure_from_matrices(np.eye(2), K03, damping=0.03 * K03)
-    spring = aj.Contact("x1", gap=1.0, contact=aj.KelvinVoigt(stiffness=100.0, damping=0.0))
+    spring = aj.Contact("x1", gap=1.0, contact=aj.KelvinVoigt(stiffness=100.0, damping=0.0,
+                                                              adhesive=True))
     return aj.StructuralSystem(st, [spring], load="x2", observe="x2")
 
 
@@ -97,7 +98,7 @@ def test_two_mass_systems_are_special_cases():
     FrictionDamper: the same state scales, vector fields, orbits and amplitudes (1e-10).
     The friction case is the issue-10 stick–slip scene with the exact (event-driven) Coulomb
     law: on a structure one exact friction damper is integrated by modes too."""
-    kv = aj.KelvinVoigt(stiffness=400.0, damping=20.0)
+    kv = aj.KelvinVoigt(stiffness=400.0, damping=20.0, adhesive=True)
     imp = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3, contact=kv)
     law = aj.Coulomb(mu=0.5)
     fa = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=0.1, k2=1e3, c2=0.0,
@@ -350,7 +351,8 @@ def test_beam_tip_friction_damper_limits_and_energy_balance():
     (lambda: aj.StructuralSystem(aj.shear_building([1.0, 1.0], [1.0, 1.0]), [
         aj.FrictionDamper(d, m=1.0, k=1.0, c=0.0, normal_force=1.0, friction=aj.Coulomb(0.5))
         for d in ("floor1", "floor2")], load="floor1"), "at most one"),
-    (lambda: aj.Contact("floor1", gap=1.0, contact=aj.KelvinVoigt(1.0, 0.0), sides="three"),
+    (lambda: aj.Contact("floor1", gap=1.0, contact=aj.KelvinVoigt(1.0, 0.0,
+                                                                  adhesive=True), sides="three"),
      "sides"),
     (lambda: aj.StructuralSystem(aj.shear_building([1.0], [1.0]), [3.0], load="floor1"),
      "elements"),
@@ -404,7 +406,7 @@ def test_every_element_type_closes_the_energy_balance():
     and every output is finite.  Also a design grid over an element parameter (params=)."""
     K = np.array([[2.0, -1.0, 0.0], [-1.0, 2.0, -1.0], [0.0, -1.0, 1.0]]) * 1e3
     st = aj.structure_from_matrices(np.eye(3), K, rayleigh=(0.1, 1e-4))
-    kv = aj.KelvinVoigt(stiffness=2e4, damping=5.0)
+    kv = aj.KelvinVoigt(stiffness=2e4, damping=5.0, adhesive=True)
     els = [aj.Contact("x1", other="x2", gap=2e-3, contact=kv, sides="two"),
            aj.FrictionContact("x1", normal_force=2.0, friction=aj.Dahl(mu_c=0.3, sigma0=1e4)),
            aj.ImpactDamper("x3", m=0.05, gap=1e-3, contact=kv),

@@ -77,7 +77,8 @@ constructors of :mod:`_systems.elements`):
 - ``friction_contact``: ``normal_force`` >= 0, ``friction``; optional ``other``.
 
 Contact laws ``{law = ..., ...}``: ``kelvin_voigt`` | ``hertz`` | ``hunt_crossley`` with
-``stiffness`` > 0, ``damping`` >= 0, optional ``eps`` > 0 [m] and ``adhesive`` (bool).
+``stiffness`` > 0, ``damping`` >= 0, optional ``eps`` > 0 [m] and ``adhesive`` (bool, default
+false: the wall never pulls).
 Friction laws: ``coulomb`` (``mu``, ``eps``), ``stribeck`` (``mu_c``, ``mu_s``, ``v_s``,
 ``eps``), ``dahl`` (``mu_c``, ``sigma0``, optional ``eps``), ``lugre`` (``mu_c``, ``mu_s``,
 ``v_s``, ``sigma0``, ``sigma1``, optional ``sigma2``, ``eps``; without ``eps`` the bristle laws
@@ -475,7 +476,7 @@ def _contact_law(d, path):
     _keys(d, path, ("law", "stiffness", "damping"), ("eps", "adhesive"))
     kw = dict(stiffness=_number(d, "stiffness", path, lo=0.0, lo_open=True),
               damping=_number(d, "damping", path, lo=0.0),
-              adhesive=_boolean(d, "adhesive", path, default=True))
+              adhesive=_boolean(d, "adhesive", path, default=False))
     if "eps" in d:
         kw["eps"] = _number(d, "eps", path, lo=0.0, lo_open=True)
     cls = {"kelvin_voigt": aj.KelvinVoigt, "hertz": aj.Hertz,

@@ -10,12 +10,13 @@ derivative of the smoothed penetration, so the viscous term switches on with con
 from __future__ import annotations
 
 import abc
+import math
 from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._core.checks import as_float, nonnegative, positive
+from .._core.checks import as_float, check_scalar, nonnegative, positive
 from .smooth import smooth_clip_positive, smooth_gate, smooth_relu
 
 
@@ -117,10 +118,13 @@ class KelvinVoigt(AbstractContactLaw):
     **Arguments**
 
     - ``stiffness``: $k_1$ [N/m] (Table 1: 400).
-    - ``damping``: $c_1$ [N s/m] (Table 1: 20).
+    - ``damping``: $c_1$ [N s/m] (Table 1: 20); default 0 (elastic).
     - ``eps``: smoothing length of the contact onset [m].
-    - ``adhesive``: ``True`` (the paper's law, pulls at separation) or ``False`` (force
-      clipped at zero).
+    - ``adhesive``: ``False`` (default: the total force is clipped at zero, a wall never
+      pulls) or ``True`` (the paper's law as printed, which pulls at separation while
+      ``c1 δ̇ < -k1 δ``; the paper's presets use it).
+
+    :meth:`from_restitution` gives the damping of a target coefficient of restitution.
 
     Single impact of two free masses (``meff = mM/(m+M)``): contact time ``π/ω_d``,
     ``ω_d = sqrt(k1/meff - (c1/(2 meff))²)``, restitution ``exp(-ζπ/sqrt(1-ζ²))``.
@@ -133,9 +137,9 @@ class KelvinVoigt(AbstractContactLaw):
 
     exponent: ClassVar[float] = 1.0
     stiffness: object = eqx.field(converter=as_float)
-    damping: object = eqx.field(converter=as_float)
+    damping: object = eqx.field(converter=as_float, default=0.0)
     eps: object = eqx.field(converter=as_float, default=1e-6)
-    adhesive: bool = eqx.field(static=True, default=True)
+    adhesive: bool = eqx.field(static=True, default=False)
 
     def elastic_force(self, delta):
         return self.stiffness * delta
@@ -145,6 +149,64 @@ class KelvinVoigt(AbstractContactLaw):
 
     def potential(self, delta):
         return 0.5 * self.stiffness * delta**2
+
+    @classmethod
+    def from_restitution(cls, stiffness, restitution, m, M=math.inf, *, eps=1e-6,
+                         adhesive=False):
+        r"""The law whose damping gives a single impact of masses ``m`` and ``M`` [kg]
+        (``M = inf``: against a fixed wall) the coefficient of restitution ``restitution``
+        ``e`` in ``(0, 1]``, exactly for the law as built.
+
+        With ``meff = mM/(m+M)``, ``ω_n = sqrt(k1/meff)`` and ``ζ = c1/(2 meff ω_n)``, the
+        penetration during contact is ``δ = (v0/ω_d) e^{-ζω_n t} sin(ω_d t)``.  The adhesive
+        law separates at ``δ = 0`` (``ω_d t = π``): ``e = exp(-ζπ/sqrt(1-ζ²))``, inverted in
+        closed form, ``ζ = -ln e / sqrt(π² + ln² e)``.  The non-adhesive law separates
+        earlier, where the force ``k1 δ + c1 δ̇`` reaches zero, at
+        ``θ = ω_d t = π - atan2(2ζ sqrt(1-ζ²), 1-2ζ²)``, with
+        ``e = -e^{-ζθ/sqrt(1-ζ²)} (cos θ - ζ sin θ / sqrt(1-ζ²))``, which falls
+        monotonically from 1 at ``ζ = 0`` and is inverted by bisection.
+
+        ```python
+        law = KelvinVoigt.from_restitution(1e5, 0.6, m=0.2, M=1.0)
+        ```
+        """
+        check_scalar("KelvinVoigt.from_restitution", "restitution", restitution, lo=0.0,
+                     hi=1.0, lo_open=True)
+        positive("KelvinVoigt.from_restitution", "stiffness", stiffness)
+        positive("KelvinVoigt.from_restitution", "m", m)
+        positive("KelvinVoigt.from_restitution", "M", M)
+        meff = m if math.isinf(M) else m * M / (m + M)
+        zeta = _zeta_of_restitution(float(restitution), bool(adhesive))
+        damping = 2.0 * zeta * math.sqrt(float(stiffness) * meff)
+        return cls(stiffness=stiffness, damping=damping, eps=eps, adhesive=adhesive)
+
+
+def restitution_of_zeta(zeta, adhesive):
+    """The coefficient of restitution of a single Kelvin–Voigt impact of damping ratio
+    ``zeta`` in ``[0, 1)`` (:meth:`KelvinVoigt.from_restitution`)."""
+    r = math.sqrt(1.0 - zeta**2)
+    if adhesive:
+        return math.exp(-zeta * math.pi / r)
+    theta = math.pi - math.atan2(2.0 * zeta * r, 1.0 - 2.0 * zeta**2)
+    return -math.exp(-zeta * theta / r) * (math.cos(theta) - zeta * math.sin(theta) / r)
+
+
+def _zeta_of_restitution(e, adhesive):
+    if e >= 1.0:
+        return 0.0
+    if adhesive:
+        ln = math.log(e)
+        return -ln / math.sqrt(math.pi**2 + ln**2)
+    lo, hi = 0.0, 1.0 - 1e-12
+    if restitution_of_zeta(hi, False) > e:
+        raise ValueError(f"KelvinVoigt.from_restitution: a restitution of {e} needs an "
+                         "overdamped contact; use a larger restitution or adhesive=True")
+    for _ in range(200):                       # bisection: e(ζ) is monotonic
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if restitution_of_zeta(mid, False) > e else (lo, mid)
+        if hi - lo < 1e-15:
+            break
+    return 0.5 * (lo + hi)
 
 
 class _AbstractHertzian(AbstractContactLaw):
@@ -181,9 +243,9 @@ class Hertz(_AbstractHertzian):
     """
 
     stiffness: object = eqx.field(converter=as_float)
-    damping: object = eqx.field(converter=as_float)
+    damping: object = eqx.field(converter=as_float, default=0.0)
     eps: object = eqx.field(converter=as_float, default=1e-6)
-    adhesive: bool = eqx.field(static=True, default=True)
+    adhesive: bool = eqx.field(static=True, default=False)
 
     def viscous_force(self, delta, delta_dot):
         return self.damping * delta_dot
@@ -212,9 +274,9 @@ class HuntCrossley(_AbstractHertzian):
     """
 
     stiffness: object = eqx.field(converter=as_float)
-    damping: object = eqx.field(converter=as_float)
+    damping: object = eqx.field(converter=as_float, default=0.0)
     eps: object = eqx.field(converter=as_float, default=1e-6)
-    adhesive: bool = eqx.field(static=True, default=True)
+    adhesive: bool = eqx.field(static=True, default=False)
 
     def viscous_force(self, delta, delta_dot):
         return self.damping * delta**1.5 * delta_dot

@@ -313,8 +313,9 @@ class FrictionAbsorber(AbstractAbsorberSystem):
     **Arguments**
 
     - ``m1``, ``k1``, ``c1``: primary mass [kg], stiffness [N/m], damping [N s/m]
-      (Tables 4–5: 1, 1e4, 0).
-    - ``m2``, ``k2``, ``c2``: absorber mass, tie stiffness and damping (1, 1e4, 0).
+      (Tables 4–5: 1, 1e4, 0; ``c1`` default 0).
+    - ``m2``, ``k2``, ``c2``: absorber mass, tie stiffness and damping (1, 1e4, 0);
+      ``c2`` default 0 (keyword only, as ``c1``).
     - ``normal_force``: ``N`` [N] (the paper gives none; see :mod:`absorber_jax.presets`).
     - ``friction``: a :class:`Coulomb`, :class:`Stribeck`, :class:`Dahl` or :class:`LuGre` law.
 
@@ -326,10 +327,10 @@ class FrictionAbsorber(AbstractAbsorberSystem):
 
     m1: object = eqx.field(converter=as_float)
     k1: object = eqx.field(converter=as_float)
-    c1: object = eqx.field(converter=as_float)
+    c1: object = eqx.field(converter=as_float, default=0.0, kw_only=True)
     m2: object = eqx.field(converter=as_float)
     k2: object = eqx.field(converter=as_float)
-    c2: object = eqx.field(converter=as_float)
+    c2: object = eqx.field(converter=as_float, default=0.0, kw_only=True)
     normal_force: object = eqx.field(converter=as_float)
     friction: AbstractFrictionLaw
 

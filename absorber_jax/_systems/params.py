@@ -44,8 +44,18 @@ def get_param(system, name):
     return _getter(resolve(system, name))(system)
 
 
+# fields replace_params accepts that are model or numerical choices, not design parameters:
+# a law's smoothing length, whether it pulls at separation, the exact stick-slip switch
+SETTINGS = ("eps", "adhesive", "exact")
+
+
 def parameter_names(system):
-    return system.parameter_names()
+    """The design parameters of ``system`` by name, as :func:`replace_params`,
+    :func:`get_param`, sweeps (``params=``) and :func:`tune` accept them: the paper's symbols
+    (``k1``, ``c1``, ``m``, ``gap``, ``N``, ...) and their field names, element parameters
+    as ``<element>.<field>``.  Model settings (``eps``, ``adhesive``, ``exact``) are not
+    listed, though :func:`replace_params` accepts them too."""
+    return [k for k in system.parameter_names() if k.rsplit(".", 1)[-1] not in SETTINGS]
 
 
 def replace_params(system, values: dict, *, check=True):

@@ -1,0 +1,41 @@
+"""Neutral defaults: a law a user builds never pulls at separation unless asked, dampings
+default to zero, and parameter_names lists design parameters only."""
+
+import numpy as np
+
+import absorber_jax as aj
+
+
+def test_contact_laws_do_not_pull_unless_asked():
+    delta, rate = 1e-4, -1.0                 # inside the wall, leaving fast
+    for cls in (aj.KelvinVoigt, aj.Hertz, aj.HuntCrossley):
+        plain = cls(stiffness=1e5, damping=50.0)
+        sticky = cls(stiffness=1e5, damping=50.0, adhesive=True)
+        assert not plain.adhesive
+        assert float(plain.force(delta, rate)) >= -1e-12      # clipped (smoothly) at zero
+        elastic = 1e5 * delta ** plain.exponent
+        viscous = 50.0 * rate * (delta**1.5 if cls is aj.HuntCrossley else 1.0)
+        np.testing.assert_allclose(float(sticky.force(delta, rate)), elastic + viscous,
+                                   rtol=1e-9)
+        assert float(cls(stiffness=1e5).damping) == 0.0
+
+
+def test_friction_absorber_damping_defaults_to_zero():
+    law = aj.Coulomb(mu=0.5)
+    a = aj.FrictionAbsorber(m1=1.0, k1=1e4, m2=0.1, k2=1e3, normal_force=2.0, friction=law)
+    b = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=0.0, m2=0.1, k2=1e3, c2=0.0, normal_force=2.0,
+                            friction=law)
+    f = aj.Harmonic(amplitude=5.0, omega=90.0)
+    np.testing.assert_array_equal(np.asarray(aj.simulate(a, f, 0.3).ys),
+                                  np.asarray(aj.simulate(b, f, 0.3).ys))
+
+
+def test_parameter_names_are_design_parameters():
+    system, _ = aj.presets.friction("coulomb")
+    names = aj.parameter_names(system)
+    assert {"m2", "k2", "c2", "N", "mu"} <= set(names)
+    assert not {"eps", "exact", "adhesive"} & set(names)
+    impact, _ = aj.presets.impact("hertz")
+    assert "eps" not in aj.parameter_names(impact)
+    # settings stay replaceable by name
+    assert float(aj.get_param(aj.replace_params(impact, {"eps": 1e-7}), "eps")) == 1e-7

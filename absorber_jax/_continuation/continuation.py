@@ -47,7 +47,6 @@ Analysis* (Springer, 2010), ch. 7 (periodic orbits by shooting).
 from __future__ import annotations
 
 import copy
-import csv
 import dataclasses
 import json
 import math
@@ -57,9 +56,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core import tables
 from .._core.checks import check_scalar, check_state, require_x64
 from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
-from .._core.status import Status, describe
+from .._core.status import Status, nan_where_failed
+from .._core.units import Signals, signals_of
 from .._integration.flow import (
     _Config,
     _flow,
@@ -185,7 +186,8 @@ class Branch(SteadyResults, eqx.Module):
     ``bifurcations``: the :class:`Bifurcation` s found, in branch order; ``termination``:
     why the branch ended (``"bounds"``, ``"max_points"``, ``"rejoined"``, ``"closed"``,
     ``"step_collapse"`` or ``"start_failed"``); ``steps``: corrector iterations per point
-    are ``iterations``."""
+    are ``iterations``.  The measured fields are NaN at failed points; ``signals``: the
+    names and SI units of what they measure (:mod:`_core.units`)."""
 
     parameter: str = eqx.field(static=True)
     values: np.ndarray
@@ -194,6 +196,7 @@ class Branch(SteadyResults, eqx.Module):
     period_multiple: int = eqx.field(static=True)
     termination: str = eqx.field(static=True)
     dof_names: tuple = eqx.field(static=True, default=())
+    signals: Signals = eqx.field(static=True, default=Signals())
 
     def __len__(self):
         return int(np.asarray(self.values).shape[0])
@@ -213,25 +216,27 @@ class Branch(SteadyResults, eqx.Module):
                     corrector_iterations_median=float(np.median(self.iterations)),
                     bifurcations=[b.summary() for b in self.bifurcations])
 
+    def failures(self):
+        """``[(index, what failed and what to try)]`` of the points that failed."""
+        return tables.failure_list(self.status)
+
     def to_csv(self, path):
-        """One row per branch point: the parameter, the scalar results, the largest
-        multiplier modulus, the per-degree-of-freedom amplitudes, the status text."""
-        dofs = [f"{k}[{d}]" for k in ("amplitude", "rms", "harmonic") for d in self.dof_names]
-        with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["point", self.parameter, "amplitude", "rms", "harmonic",
-                        "absorber_amplitude", "period_multiple", "stable", "max_multiplier",
-                        "iterations", "residual", *dofs, "status", "status_text"])
-            mults = np.abs(np.asarray(self.multipliers))
-            for i in range(len(self)):
-                d = [float(np.asarray(getattr(self.steady, "dof_" + k))[i, j])
-                     for k in ("amplitude", "rms", "harmonic") for j in range(len(self.dof_names))]
-                w.writerow([i, float(self.values[i]), float(self.amplitude[i]),
-                            float(self.rms[i]), float(self.harmonic[i]),
-                            float(self.absorber_amplitude[i]), self.period_multiple,
-                            int(self.stable[i]), float(np.max(mults[i])),
-                            int(self.iterations[i]), float(self.residual[i]), *d,
-                            int(self.status[i]), describe(self.status[i])])
+        """One row per branch point, SI values, each header with its unit: the point index,
+        the parameter (``omega [rad/s]``), the observable's and the absorber stroke's
+        statistics, impacts, period multiple, stability, status, residual, iterations, the
+        largest |multiplier|, each degree of freedom's absolute statistics, the status
+        text (columns as in ``FrequencyResponse.to_csv``)."""
+        tables.write_csv(path, tables.branch_columns(self))
+
+    def to_dataframe(self):
+        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        return tables.dataframe(tables.branch_columns(self), "Branch.to_dataframe")
+
+    def to_xarray(self):
+        """An ``xarray.Dataset`` over the branch's ``point`` s (the parameter a coordinate
+        along them), every field with ``units`` and ``long_name``, ``status`` with its code
+        names, the bifurcations over ``bifurcation`` (needs xarray)."""
+        return tables.branch_dataset(self)
 
     def to_json(self, path):
         with open(path, "w") as fh:
@@ -900,9 +905,10 @@ def _branch(points, bifs, termination, drv, value0, system):
     steady = jax.tree_util.tree_map(lambda *a: np.stack(a), *[q["ss"] for q in points])
     pscale = float(drv.prob.pscale)
     values = np.array([q["z"][-1] * pscale if "z" in q else value0 for q in points])
-    return Branch(parameter=drv.prob.parameter, values=values, steady=steady,
+    return Branch(parameter=drv.prob.parameter, values=values, steady=nan_where_failed(steady),
                   bifurcations=tuple(bifs), period_multiple=drv.prob.n,
-                  termination=termination, dof_names=tuple(system.output_names))
+                  termination=termination, dof_names=tuple(system.output_names),
+                  signals=signals_of(system))
 
 
 # ------------------------------------------------------------------- following a branch

@@ -184,6 +184,29 @@ class Trajectory(eqx.Module):
         to_int = jax.vmap(self.system.to_internal)
         return jax.vmap(self.system.mechanical_energy)(to_int(self.ys))
 
+    def to_csv(self, path):
+        """One row per save time, SI values, each header with its unit: ``t [s]``, the
+        public state (``x1 [m]``, ``v1 [m/s]`` ...), the degrees of freedom that are not
+        state components, the coupling force(s) [N], the friction fields and energies when
+        present."""
+        from .._core.tables import trajectory_columns, write_csv
+
+        write_csv(path, trajectory_columns(self))
+
+    def to_dataframe(self):
+        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        from .._core.tables import dataframe, trajectory_columns
+
+        return dataframe(trajectory_columns(self), "Trajectory.to_dataframe")
+
+    def to_xarray(self):
+        """An ``xarray.Dataset`` over ``time`` [s]: each public state component, the degrees
+        of freedom (over ``dof``), the observable and the forces with ``units`` and
+        ``long_name``; ``status`` with its code names (needs xarray)."""
+        from .._core.tables import trajectory_dataset
+
+        return trajectory_dataset(self)
+
     def amplitude(self, signal="x1", last_periods=10):
         """Half peak-to-peak [m] of ``signal`` over the last ``last_periods`` forcing periods
         (host-side helper for plots and reports)."""

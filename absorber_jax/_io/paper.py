@@ -1,8 +1,9 @@
 """Reproduction of the paper's figures and a check of its conclusions.
 
 ``reproduce_paper(out_dir)`` writes one PNG per paper figure (2, 4, 6, 7, 9–20), a
-``summary.json`` and ``amplitudes.csv`` with the amplitudes we measured, and returns the
-summary.  ``quick=True`` shortens every simulation (used by the tests).
+``summary.json`` (amplitudes in mm, the keys say so) and ``amplitudes.csv`` (SI: metres,
+each header with its unit) with the amplitudes we measured, and returns the summary.
+``quick=True`` shortens every simulation (used by the tests).
 """
 
 from __future__ import annotations
@@ -218,7 +219,7 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
             "steps": int(tr.num_steps),
             "solver": tr.solver,
         }
-        rows.append(["impact", name, amp * 1e3, rel * 1e3, "", timings[name], int(tr.num_steps)])
+        rows.append(["impact", name, amp, rel, "", timings[name], int(tr.num_steps)])
         f, ax = plt.subplots(figsize=(8, 4))
         ax.plot(ts, x1 * 1e3, lw=0.8)
         ax.set(
@@ -255,7 +256,7 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
             "solver": tr.solver,
         }
         rows.append(
-            ["friction", name, end_amp * 1e3, "", rms * 1e3, timings[name], int(tr.num_steps)]
+            ["friction", name, end_amp, "", rms, timings[name], int(tr.num_steps)]
         )
     pairs = (((11, 12, 13, 14), ("coulomb", "stribeck")), ((17, 18, 19, 20), ("dahl", "lugre")))
     for (fa, fb, fr, fx), names in pairs:
@@ -315,10 +316,10 @@ def reproduce_paper(out_dir: str = "paper_figures", *, quick: bool = False, prog
             [
                 "kind",
                 "scene",
-                "x1_amplitude_mm",
-                "relative_amplitude_mm",
-                "x1_rms_mm",
-                "seconds_per_simulated_second",
+                "amplitude x1 [m]",
+                "amplitude x2 - x1 [m]",
+                "rms x1 [m]",
+                "run time per simulated time [s/s]",
                 "steps",
             ]
         )

@@ -41,8 +41,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core import tables
 from .._core.checks import check_scalar, require_x64
 from .._core.status import Status
+from .._core.units import Signals, signals_of
 from .._integration.flow import flow_along, make_config, state_scale
 from .._systems.base import AbstractSystem
 from .._systems.forcing import Harmonic
@@ -118,7 +120,9 @@ class AttractorMap(eqx.Module):
     initial state;
     ``section``: the observable at ``t = kT`` over the window (``(K, window)``: the
     stroboscopic samples a bifurcation diagram plots); ``label``: the attractor index of each
-    initial state; ``attractors``: the distinct :class:`Attractor` s, most frequent first."""
+    initial state; ``attractors``: the distinct :class:`Attractor` s, most frequent first;
+    ``signals``: the names and SI units of what the statistics measure (the observable, the
+    state components; :mod:`_core.units`)."""
 
     omega: float
     amplitude_F0: float
@@ -133,11 +137,35 @@ class AttractorMap(eqx.Module):
     section: np.ndarray
     label: np.ndarray
     attractors: tuple
+    signals: Signals = eqx.field(static=True, default=Signals())
 
     def summary(self):
         return dict(omega=float(self.omega), F0=float(self.amplitude_F0),
                     samples=int(self.label.shape[0]),
                     attractors=[a.summary() for a in self.attractors])
+
+    def failures(self):
+        """``[(index, what failed and what to try)]`` of the initial states whose marching
+        did not settle on a periodic orbit (``NOT_PERIODIC``: quasi-periodic or chaotic
+        responses too, whose window statistics still hold)."""
+        return tables.failure_list(self.steady.status)
+
+    def to_csv(self, path):
+        """One row per initial state, SI values, each header with its unit: ``omega``, the
+        initial state, the attractor it settled on, the window statistics, the marching
+        status."""
+        tables.write_csv(path, tables.attractor_columns(self))
+
+    def to_dataframe(self):
+        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        return tables.dataframe(tables.attractor_columns(self), "AttractorMap.to_dataframe")
+
+    def to_xarray(self):
+        """An ``xarray.Dataset`` over the initial states (``sample``): initial states,
+        window statistics and stroboscopic samples with ``units`` and ``long_name``, the
+        attractor labels, the marching status with its code names, the distinct attractors
+        over ``attractor`` (needs xarray)."""
+        return tables.attractor_dataset(self)
 
 
 def samples_per_period(system, omega):
@@ -306,7 +334,7 @@ def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None
     return AttractorMap(omega=float(forcing.omega), amplitude_F0=float(forcing.amplitude),
                         initial_states=y0, steady=ss, peak=peak, rms=rms, amplitude=amp,
                         spread=spr, impacts=imp, lyapunov=lyap, section=sec, label=label,
-                        attractors=tuple(found))
+                        attractors=tuple(found), signals=signals_of(system))
 
 
 def _group(per, amp, rms, rel_tol):

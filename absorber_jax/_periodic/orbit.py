@@ -69,6 +69,14 @@ class SteadyState(eqx.Module):
     def ok(self):
         return self.status == Status.SUCCESS
 
+    def to_xarray(self, system=None):
+        """An ``xarray.Dataset`` of this orbit (or batch of orbits, over ``point``): every
+        field with ``units`` and ``long_name``, the state and degrees of freedom named and
+        the observable and stroke labelled after ``system`` when given (needs xarray)."""
+        from .._core.tables import steady_dataset
+
+        return steady_dataset(self, system)
+
 
 class SteadyResults:
     """What results holding a batched :class:`SteadyState` as ``steady`` share (sweeps,

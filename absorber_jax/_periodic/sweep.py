@@ -3,7 +3,6 @@ one compiled, vmapped call per chunk."""
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 
@@ -12,9 +11,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core import tables
 from .._core.checks import check_scalar, check_time_grid, require_x64
 from .._core.devices import by_parts, put
-from .._core.status import Status, describe
+from .._core.status import Status, nan_where_failed
+from .._core.units import Signals, signals_of
 from .._integration.flow import lane_by_lane, large_state, state_scale
 from .._integration.simulate import choose_solver
 from .._systems.base import AbstractSystem
@@ -23,11 +24,10 @@ from .._systems.params import replace_params, resolve
 from .orbit import SteadyResults, read_through
 from .steady import SteadyState, make_config, march_then_shoot, resolve_method, solve_point
 
-# the per-point scalar results of the point solve (SteadyState), in CSV order
+# the per-point scalar results of the point solve (SteadyState), read through
 FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState)
                if f.name not in ("state", "multipliers") and not f.name.startswith("dof_"))
 DOF_FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState) if f.name.startswith("dof_"))
-_INTEGER = ("period_multiple", "status", "iterations", "stable")
 
 
 class FrequencyResponse(SteadyResults, eqx.Module):
@@ -41,39 +41,41 @@ class FrequencyResponse(SteadyResults, eqx.Module):
     ``dof_names``).  ``status`` is per point (0 = success, see :class:`Status`); a failed point
     never spoils the others.  ``direction`` is ``"parallel"`` (every point from its own linear
     guess), ``"up"`` or ``"down"`` (each point seeded from its neighbour: follows a branch,
-    shows hysteresis)."""
+    shows hysteresis).  The measured fields (``amplitude`` ... ``dof_harmonic``) are NaN at
+    failed points.  ``signals``: the names and SI units of what the fields measure (the
+    observable, the absorber stroke, the degrees of freedom; :mod:`_core.units`)."""
 
     omegas: np.ndarray
     steady: SteadyState
     params: dict
     direction: str = eqx.field(static=True, default="parallel")
     dof_names: tuple = eqx.field(static=True, default=())
+    signals: Signals = eqx.field(static=True, default=Signals())
 
     def failures(self):
-        """``[(index, status text)]`` of the points that failed."""
-        idx = np.argwhere(self.status != Status.SUCCESS)
-        return [(tuple(int(j) for j in i), describe(self.status[tuple(i)])) for i in idx]
+        """``[(index, what failed and what to try)]`` of the points that failed."""
+        return tables.failure_list(self.status)
 
     def to_csv(self, path):
-        """One row per (design, frequency): the parameters, ``omega``, the scalar fields, the
-        per-degree-of-freedom ones as ``<field>[<dof>]`` columns, the status text."""
-        dof_cols = [f"{k[4:]}[{d}]" for k in DOF_FIELDS for d in self.dof_names]
-        with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            pnames = list(self.params)
-            w.writerow(["direction", *pnames, "omega", *FIELDS, *dof_cols, "status_text"])
-            amp = np.atleast_2d(self.amplitude)
-            P = amp.shape[0]
-            for p in range(P):
-                pv = [float(np.asarray(self.params[k])[p]) for k in pnames]
-                for f, om in enumerate(self.omegas):
-                    vals = [np.atleast_2d(getattr(self, k))[p, f] for k in FIELDS]
-                    vals = [int(v) if k in _INTEGER else float(v) for k, v in zip(FIELDS, vals)]
-                    dofs = [float(v) for k in DOF_FIELDS
-                            for v in np.asarray(getattr(self, k)).reshape(P, len(self.omegas),
-                                                                          -1)[p, f]]
-                    w.writerow([self.direction, *pv, float(om), *vals, *dofs,
-                                describe(np.atleast_2d(self.status)[p, f])])
+        """One row per (design, frequency), SI values, each header with its unit: the sweep
+        direction, the design parameters, ``omega [rad/s]``, the observable's statistics
+        (``amplitude x1 [m]``, ``rms``, ``harmonic``), the absorber stroke's (``amplitude
+        x2 - x1 [m]``: relative motion), impacts, period multiple, stability, status,
+        residual, iterations, the largest |multiplier|, each degree of freedom's absolute
+        statistics (``dof amplitude x2 [m]``), the status text; ``nan`` at failed points."""
+        tables.write_csv(path, tables.frequency_response_columns(self))
+
+    def to_dataframe(self):
+        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        return tables.dataframe(tables.frequency_response_columns(self),
+                                "FrequencyResponse.to_dataframe")
+
+    def to_xarray(self):
+        """An ``xarray.Dataset`` over ``omega`` [rad/s] (and ``design``, with the design
+        parameters as coordinates): every field with ``units`` and ``long_name``, the
+        per-degree-of-freedom fields over ``dof``, ``state`` and ``multipliers`` over their
+        components, ``status`` with its code names (needs xarray)."""
+        return tables.frequency_response_dataset(self)
 
 
 read_through(FrequencyResponse, FIELDS + DOF_FIELDS, "point")
@@ -458,9 +460,11 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
     squeeze = params is None
     get = (lambda a: a[0]) if squeeze else (lambda a: a)
     return FrequencyResponse(
-        omegas=om, steady=jax.tree_util.tree_map(lambda a: get(np.asarray(a)), res),
+        omegas=om,
+        steady=nan_where_failed(jax.tree_util.tree_map(lambda a: get(np.asarray(a)), res)),
         params={k: np.asarray(pvals[:, i]) for i, k in enumerate(names)},
         direction=direction, dof_names=tuple(system.output_names),
+        signals=signals_of(system),
     )
 
 

@@ -73,7 +73,8 @@ def test_cli_simulate_writes_csv_and_png(tmp_path):
                  "--plot", str(png)]) == 0
     data = np.loadtxt(csv_path, delimiter=",", skiprows=1)
     header = csv_path.read_text().splitlines()[0].split(",")
-    assert header[:5] == ["t", "x1", "v1", "x2", "v2"] and "regime" in header
+    assert header[:5] == ["t [s]", "x1 [m]", "v1 [m/s]", "x2 [m]", "v2 [m/s]"]
+    assert "regime" in header
     assert data.shape[0] > 100 and png.stat().st_size > 1000
 
 

@@ -187,12 +187,12 @@ def test_cli_scene_writes_dof_named_csv_summary_and_figures(tmp_path, capsys):
         rows = list(csv.DictReader(fh))
     assert len(rows) == N_FREQ
     for name in ("floor1", "floor2", "floor3", "tmd1", "tmd2", "tmd3"):
-        assert f"amplitude[{name}]" in rows[0] and f"harmonic[{name}]" in rows[0]
+        assert f"dof amplitude {name} [m]" in rows[0] and f"dof harmonic {name} [m]" in rows[0]
     # --set went through replace_params: the closed form with the changed damper
     om = np.linspace(15.0, 25.0, N_FREQ)
     tmds = [("floor3", TMDS[0][1], k_new, TMDS[0][3])] + list(TMDS[1:])
     X = _closed_form(om, tmds)
-    got = np.array([float(r["harmonic[floor3]"]) for r in rows])
+    got = np.array([float(r["dof harmonic floor3 [m]"]) for r in rows])
     np.testing.assert_allclose(got, X[:, 2], rtol=1e-6)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["parameters"]["tmd1.k"] == k_new and summary["set"] == {"tmd1.k": k_new}
@@ -206,8 +206,8 @@ def test_cli_scene_writes_dof_named_csv_summary_and_figures(tmp_path, capsys):
     assert sim["omega"] == pytest.approx(om[i])
     with open(out / "trajectory.csv") as fh:
         header = next(csv.reader(fh))
-    assert header == ["t", "floor1", "floor2", "floor3", "tmd1", "tmd2", "tmd3",
-                      "force[tmd1]", "force[tmd2]", "force[tmd3]"]
+    assert header == ["t [s]", "floor1 [m]", "floor2 [m]", "floor3 [m]", "tmd1 [m]", "tmd2 [m]",
+                      "tmd3 [m]", "force tmd1 [N]", "force tmd2 [N]", "force tmd3 [N]"]
 
 
 def _building_dict():

@@ -25,13 +25,40 @@ def cmd_reproduce(args):
     print(f"figures, summary.json and amplitudes.csv written to {args.out}")
 
 
+def _warn(text):
+    """A warning line on stderr (the results are still written)."""
+    print(f"warning: {text}", file=sys.stderr)
+
+
+def _failure_lines(frfs):
+    """One line per failure code over the sweeps ``frfs``: how many points, at which ω,
+    what failed and what to try (``describe``)."""
+    import numpy as np
+
+    from .._core.status import describe
+
+    by_code = {}
+    for f in frfs:
+        st = np.atleast_2d(np.asarray(f.status))
+        om = np.asarray(f.omegas)
+        for p, i in np.argwhere(st != 0):
+            by_code.setdefault(int(st[p, i]), []).append(float(om[i]))
+    lines = []
+    for code, oms in sorted(by_code.items()):
+        shown = ", ".join(f"{w:.4g}" for w in sorted(set(oms))[:8])
+        more = " ..." if len(set(oms)) > 8 else ""
+        lines.append(f"{len(oms)} point(s) failed at ω = {shown}{more} rad/s: "
+                     f"{describe(code)}")
+    return lines
+
+
 def cmd_simulate(args):
-    import csv
     import os
 
     import numpy as np
 
     from .. import presets
+    from .._core.status import describe
     from .._integration.simulate import simulate
 
     system, forcing = presets.scene(args.scene)
@@ -40,17 +67,12 @@ def cmd_simulate(args):
         from .._systems.params import with_params
 
         system = with_params(system, sets)
-    tr = simulate(system, forcing, args.t1, solver=args.solver)
+    tr = simulate(system, forcing, args.t1, solver=args.solver, throw=False)
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    cols = {"t": tr.ts, "x1": tr.x1, "v1": tr.v1, "x2": tr.x2, "v2": tr.v2,
-            "coupling_force": tr.coupling_force}
-    if tr.friction_force is not None:
-        cols.update(friction_force=tr.friction_force, force_ratio=tr.force_ratio,
-                    regime=tr.regime)
-    with open(args.out, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(list(cols))
-        w.writerows(np.stack([np.asarray(c, dtype=float) for c in cols.values()], axis=1))
+    tr.to_csv(args.out)
+    failed = int(tr.status) != 0
+    if failed:
+        _warn(f"the integration failed: {describe(tr.status)}")
     if args.plot:
         import matplotlib
 
@@ -59,13 +81,17 @@ def cmd_simulate(args):
 
         f, ax = plt.subplots(figsize=(8, 4))
         ax.plot(np.asarray(tr.ts), np.asarray(tr.x1) * 1e3, lw=0.7, label="x1 (primary)")
-        ax.plot(np.asarray(tr.ts), np.asarray(tr.x2) * 1e3, lw=0.7, label="x2 (absorber)")
-        ax.set(xlabel="t [s]", ylabel="displacement [mm]", title=args.scene)
+        ax.plot(np.asarray(tr.ts), np.asarray(tr.x2) * 1e3, lw=0.7,
+                label="x2 (absorber, absolute)")
+        ax.set(xlabel="time t [s]", ylabel="displacement [mm]",
+               title=args.scene + (" (integration failed)" if failed else ""))
         ax.legend()
         f.tight_layout()
         f.savefig(args.plot, dpi=110)
     print(f"{args.scene}: {int(tr.num_steps)} steps with {tr.solver}; x1 amplitude "
-          f"(last 10 periods) {tr.amplitude() * 1e3:.4f} mm -> {args.out}")
+          f"(last 10 periods) {tr.amplitude() * 1e3:.4f} mm -> {args.out} "
+          f"(SI units: m, m/s, N)")
+    return 1 if failed else 0
 
 
 def _steady_scene(args):
@@ -121,8 +147,12 @@ def cmd_sweep(args):
         plot_frequency_response(frfs, args.plot,
                                 title=f"{args.scene}, F0 = {amplitude:g} N ({args.method})")
     failed = sum(int((f.status != 0).sum()) for f in frfs)
+    lines = _failure_lines(frfs)
+    for line in lines:
+        _warn(line)
     print(json.dumps({"scene": args.scene, "points": n * len(frfs), "failed": failed,
-                      "seconds": round(elapsed, 3), "csv": args.out, "png": args.plot}))
+                      "failures": lines, "seconds": round(elapsed, 3), "csv": args.out,
+                      "png": args.plot, "units": "SI (omega rad/s, amplitudes m)"}))
 
 
 def cmd_tune(args):
@@ -132,6 +162,7 @@ def cmd_tune(args):
 
     import numpy as np
 
+    from .._core.units import signals_of, with_unit
     from .._design.objectives import BY_NAME
     from .._design.tune import plot_tuning, tune
 
@@ -153,7 +184,10 @@ def cmd_tune(args):
                 title=f"{args.scene}: {', '.join(params)} over {lo:g}–{hi:g} rad/s")
     with open(os.path.join(args.out, "curves.csv"), "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["omega", "amplitude_before", "amplitude_after"])
+        obs = signals_of(system)
+        w.writerow([with_unit("omega", "rad/s"),
+                    with_unit(f"amplitude {obs.observable} before", obs.observable_unit),
+                    with_unit(f"amplitude {obs.observable} after", obs.observable_unit)])
         w.writerows(zip(hist["omegas"], hist["amplitude_before"], hist["amplitude_after"]))
     summary = {"scene": args.scene, "params": params, "band": [lo, hi],
                "objective": args.objective, "start": {k: v[0] for k, v in hist["params"].items()},
@@ -194,41 +228,52 @@ def _peak(omegas, values, ok):
 
 
 def _plot_scene_dofs(frfs, dof_names, path, title):
-    """Amplitude of every structural degree of freedom against frequency: filled markers
-    stable, open markers unstable, red crosses failed points."""
+    """Amplitude of every degree of freedom (absolute displacement, SI units, log scale)
+    against frequency: lines broken at failed points, filled markers stable, open markers
+    unstable, red crosses on the bottom edge failed points."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from .._core.units import with_unit
+    from .plots import _sweep_words, mark_failed
+
     fig, ax = plt.subplots(figsize=(8, 4.5))
     colors = plt.get_cmap("tab10")
-    styles = {"parallel": "o", "up": "^", "down": "v"}
+    styles = {"up": "^", "down": "v"}
+    sig = frfs[0].signals
+    units = sorted({sig.dof_unit(n) for n in dof_names})
     any_failed = any_unstable = False
     for frf in frfs:
         om = np.asarray(frf.omegas)
         ok = np.asarray(frf.status) == 0
         st = np.asarray(frf.stable).astype(bool)
         mk = styles.get(frf.direction, "o")
-        tag = "" if len(frfs) == 1 else f" ({frf.direction})"
+        words = _sweep_words(frf.direction)
+        tag = f" ({words})" if words and len(frfs) > 1 else ""
         for j, name in enumerate(dof_names):
-            a = np.asarray(frf.dof(name, "amplitude"), dtype=float)
+            a = np.where(ok, np.asarray(frf.dof(name, "amplitude"), dtype=float), np.nan)
             c = colors(j % 10)
-            ax.plot(om[ok], a[ok], "-", lw=0.8, color=c, label=f"{name}{tag}")
-            ax.plot(om[ok & st], a[ok & st], mk, ms=3, color=c)
+            # the line and the stable points in one artist: the legend shows both
+            ax.plot(om, np.where(st, a, np.nan), "-", marker=mk, ms=3, lw=0.8, color=c,
+                    label=f"{name}{tag}")
+            ax.plot(om, a, "-", lw=0.8, color=c)
             if (ok & ~st).any():
                 any_unstable = True
-                ax.plot(om[ok & ~st], a[ok & ~st], mk, ms=5, mfc="none", color=c)
+                ax.plot(om[ok & ~st], a[ok & ~st], mk, ls="none", ms=5, mfc="none", color=c)
         if (~ok).any():
             any_failed = True
-            ax.plot(om[~ok], np.zeros((~ok).sum()), "x", color="red", clip_on=False)
+            mark_failed(ax, om[~ok])
     if any_unstable:
-        ax.plot([], [], "o", mfc="none", color="0.3", label="unstable (open markers)")
+        ax.plot([], [], "o", ls="none", ms=5, mfc="none", color="0.3", label="unstable")
     if any_failed:
-        ax.plot([], [], "x", color="red", label="failed")
+        mark_failed(ax, [np.nan], label="failed")
     ax.set_yscale("log")
-    ax.set(xlabel="ω [rad/s]", ylabel="amplitude (half peak-to-peak) [m or rad]", title=title)
+    ax.set(xlabel=with_unit("forcing frequency ω", "rad/s"),
+           ylabel=with_unit("amplitude of each degree of freedom (absolute, half "
+                            "peak-to-peak)", " or ".join(units)), title=title)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -245,6 +290,9 @@ def cmd_scene(args):
     import jax
     import numpy as np
 
+    from .._core.status import describe, hint
+    from .._core.status import name as status_name
+    from .._core.units import with_unit
     from .._integration.simulate import simulate
     from .._periodic.sweep import frequency_response
     from .._systems.forcing import Harmonic
@@ -300,8 +348,12 @@ def cmd_scene(args):
             a, w = _peak(om, f.dof(name, "amplitude"), ok)
             if a is not None and (name not in per_dof or a > per_dof[name]["amplitude"]):
                 per_dof[name] = {"amplitude": a, "omega": w, "direction": f.direction}
-        failures += [{"direction": f.direction, "omega": float(om[i[-1]]), "status": text}
-                     for i, text in f.failures()]
+        codes = np.asarray(f.status)
+        failures += [{"direction": f.direction, "omega": float(om[i[-1]]),
+                      "status": status_name(codes[tuple(i)]),
+                      "meaning": describe(codes[tuple(i)], hint=False),
+                      "try": hint(codes[tuple(i)])} for i in np.argwhere(codes != 0)]
+    sig = frfs[0].signals
     params = {k: float(np.asarray(get_param(system, k))) for k in system.parameter_names()}
     summary = {
         "scene": os.path.abspath(args.file), "title": settings.title,
@@ -313,6 +365,9 @@ def cmd_scene(args):
         "points": len(omegas) * len(frfs), "failed": len(failures), "failures": failures,
         "unstable": unstable, "csv": csvs, "png": "frequency_response.png",
         "timing_s": {"load": round(t_loaded - t_start, 3), "sweep": round(t_swept - t_loaded, 3)},
+        "units": {"omega": "rad/s", "amplitude": "SI (m; rad on a rotational degree of freedom)",
+                  "observable": sig.observable, "observable_units": sig.observable_unit,
+                  "parameters": {k: sig.parameter_unit(k) for k in params}},
     }
     if args.simulate:
         omega = settings.simulate_omega or (best["omega"] if best else float(omegas[0]))
@@ -325,8 +380,9 @@ def cmd_scene(args):
         forces = np.asarray(tr.coupling_force).reshape(len(ts), -1)
         with open(os.path.join(args.out, "trajectory.csv"), "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["t", *system.output_names,
-                        *(f"force[{e}]" for e in system.element_names)])
+            w.writerow([with_unit("t", "s"),
+                        *(with_unit(n, sig.dof_unit(n)) for n in system.output_names),
+                        *(with_unit(f"force {e}", "N") for e in system.element_names)])
             w.writerows(np.column_stack([ts, ys, forces]).tolist())
         last = ts >= ts[-1] - 10 * 2 * np.pi / omega
         amps = {nm: float(0.5 * np.ptp(ys[last, j]))
@@ -343,7 +399,9 @@ def cmd_scene(args):
         fig, ax = plt.subplots(figsize=(8, 4))
         for j, nm in enumerate(dof_names):
             ax.plot(ts, ys[:, j], lw=0.7, label=nm)
-        ax.set(xlabel="t [s]", ylabel="displacement [m or rad]",
+        ax.set(xlabel=with_unit("time t", "s"),
+               ylabel=with_unit("displacement", " or ".join(sorted(
+                   {sig.dof_unit(n) for n in dof_names}))),
                title=f"{title}\nfrom rest at ω = {omega:.4g} rad/s")
         ax.legend(fontsize=7)
         fig.tight_layout()
@@ -353,12 +411,16 @@ def cmd_scene(args):
     summary["timing_s"]["total"] = round(time.perf_counter() - t_start, 3)
     with open(os.path.join(args.out, "summary.json"), "w") as fh:
         json.dump(summary, fh, indent=2)
-    pk = (f"peak {best['amplitude']:.4g} at ω = {best['omega']:.4g} rad/s"
+    pk = (f"peak {best['amplitude']:.4g} {sig.observable_unit} at ω = {best['omega']:.4g} rad/s"
           + ("" if best["stable"] else " (unstable)")) if best else "no successful point"
+    for line in _failure_lines(frfs):
+        _warn(line)
     print(f"{title}: {summary['points']} points, {len(failures)} failed, {unstable} unstable; "
-          f"observable {pk}; sweep {summary['timing_s']['sweep']:.1f} s -> {args.out}")
+          f"observable {sig.observable} {pk}; sweep {summary['timing_s']['sweep']:.1f} s "
+          f"-> {args.out} (SI units)")
     for nm, v in per_dof.items():
-        print(f"  {nm:>12s}: peak {v['amplitude']:.4g} at ω = {v['omega']:.4g} rad/s")
+        print(f"  {nm:>12s}: peak {v['amplitude']:.4g} {sig.dof_unit(nm)} at "
+              f"ω = {v['omega']:.4g} rad/s")
     if "simulation" in summary:
         s = summary["simulation"]
         print(f"  simulated {s['periods']} periods at ω = {s['omega']:.4g} rad/s "
@@ -442,8 +504,11 @@ def cmd_continue(args):
     for br in branches:
         print(f"period-{br.period_multiple} branch: {len(br)} points, {br.termination}; "
               + ", ".join(f"{b.kind} at {b.value:.6g}" for b in br.bifurcations))
+        for (i,), text in br.failures():
+            _warn(f"branch point {i} ({args.parameter} = {float(br.values[i]):.6g}) failed: "
+                  f"{text}")
     print(f"CSV, summary.json and branches.png written to {args.out} "
-          f"({summary['time_s']:.1f} s)")
+          f"({summary['time_s']:.1f} s; SI units)")
 
 
 def _load_system(args):
@@ -475,13 +540,14 @@ def _load_system(args):
 def cmd_attractors(args):
     """Attractor map at one frequency (--omega W) or a stroboscopic bifurcation diagram
     over a range (--omega LO:HI:N): JSON summary, CSV per initial state, PNG."""
-    import csv
     import json
     import os
     import time
 
     import numpy as np
 
+    from .._core.tables import attractor_columns, write_csv
+    from .._core.units import with_unit
     from .._periodic.attractors import attractors, bifurcation_diagram
     from .._systems.forcing import Harmonic
     from .plots import plot_bifurcation_diagram
@@ -499,19 +565,11 @@ def cmd_attractors(args):
     else:
         w = float(args.omega)
         maps = [attractors(system, Harmonic(amplitude=amplitude, omega=w), **opts)]
-    with open(os.path.join(args.out, "attractors.csv"), "w", newline="") as fh:
-        wr = csv.writer(fh)
-        wr.writerow(["omega", "sample", *[f"y0[{s}]" for s in system.state_names],
-                     "attractor", "periodic", "period_multiple", "amplitude", "rms", "peak",
-                     "spread", "impacts_per_period", "lyapunov_per_s", "marching_status"])
-        for m in maps:
-            for k in range(m.label.shape[0]):
-                lab = int(m.label[k])
-                a = m.attractors[lab] if lab >= 0 else None
-                wr.writerow([m.omega, k, *m.initial_states[k], lab,
-                             int(a.periodic) if a else "", a.period_multiple if a else "",
-                             m.amplitude[k], m.rms[k], m.peak[k], m.spread[k],
-                             m.impacts[k], m.lyapunov[k], int(m.steady.status[k])])
+    # one table over all maps: the rows of each map's to_csv, one after the other
+    parts = [attractor_columns(m) for m in maps]
+    write_csv(os.path.join(args.out, "attractors.csv"),
+              [(h, np.concatenate([np.asarray(p[j][1]) for p in parts]))
+               for j, (h, _) in enumerate(parts[0])])
     summary = {"scene": args.file or args.scene, "F0": amplitude, "set": sets, **opts,
                "maps": [m.summary() for m in maps], "time_s": time.perf_counter() - t0}
     with open(os.path.join(args.out, "summary.json"), "w") as fh:
@@ -527,15 +585,19 @@ def cmd_attractors(args):
                                        f"(F0 = {amplitude:g})")
     else:
         m = maps[0]
+        sig = m.signals
         fig, ax = plt.subplots(figsize=(6, 5))
         names = system.state_names
+        u = sig.observable_unit
         for i, a in enumerate(m.attractors):
             sel = m.label == i
             kind = f"period-{a.period_multiple}" if a.periodic else a.kind
-            ax.plot(m.initial_states[sel, 0], m.initial_states[sel, 1], "o", ms=5,
-                    label=f"{kind}: amplitude {a.amplitude:.4g}, peak {a.peak:.4g}, "
-                          f"{a.impacts:.3g} impacts/period ({100 * a.share:.0f} %)")
-        ax.set(xlabel=f"{names[0]}(0)", ylabel=f"{names[1]}(0)",
+            ax.plot(m.initial_states[sel, 0], m.initial_states[sel, 1], "o", ls="none", ms=5,
+                    label=f"{kind}: {sig.observable} amplitude {a.amplitude:.4g} {u}, "
+                          f"peak {a.peak:.4g} {u}, {a.impacts:.3g} impacts/period "
+                          f"({100 * a.share:.0f} %)")
+        ax.set(xlabel=with_unit(f"{names[0]}(0)", sig.state_unit(names[0])),
+               ylabel=with_unit(f"{names[1]}(0)", sig.state_unit(names[1])),
                title=f"{title}: attractors at ω = {m.omega:g} rad/s")
         ax.legend(fontsize=7)
         fig.tight_layout()
@@ -543,117 +605,230 @@ def cmd_attractors(args):
         plt.close(fig)
     for m in maps:
         print(f"ω = {m.omega:g}: " + "; ".join(
-            (f"period-{a.period_multiple}" if a.periodic else "not periodic")
-            + f" amplitude {a.amplitude:.4g} ({100 * a.share:.0f} %)" for a in m.attractors))
+            (f"period-{a.period_multiple}" if a.periodic else a.kind)
+            + f" {m.signals.observable} amplitude {a.amplitude:.4g} {m.signals.observable_unit}"
+            + f" ({100 * a.share:.0f} %)" for a in m.attractors))
     print(f"attractors.csv, summary.json and a figure written to {args.out} "
           f"({summary['time_s']:.1f} s)")
+
+
+_SCENES = ("kelvin_voigt", "hertz", "hunt_crossley", "coulomb", "stribeck", "dahl", "lugre",
+           "stribeck_physical", "lugre_physical")
+_SCENE_HELP = ("a preset scene of the paper: impact " + ", ".join(_SCENES[:3]) + "; friction "
+               + ", ".join(_SCENES[3:]))
+_SET_HELP = ("replace a parameter of the system (SI units), e.g. k1=500, gap=2e-3, N=5 or, in a "
+             "scene file, tmd1.k=5e4; repeat for several (default: none)")
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Each option's help followed by its default, except where the default is None (the
+    help says what then applies) or the option is a flag."""
+
+    def _get_help_string(self, action):
+        if action.default is None or isinstance(action.default, bool):
+            return action.help
+        return super()._get_help_string(action)
+
+
+def _command(sub, name, help, description):
+    """A subcommand with its one-line ``help`` (in the command list) and ``description``
+    (on its own ``--help``), options shown with their defaults."""
+    return sub.add_parser(name, help=help, description=description,
+                          formatter_class=_HelpFormatter)
 
 
 def _add_source(parser):
     """--scene | --file, --set, --amplitude: what :func:`_load_system` reads."""
     src = parser.add_mutually_exclusive_group()
-    src.add_argument("--scene", default="kelvin_voigt", help="a preset scene")
-    src.add_argument("--file", default=None, help="a scene file (.toml or .json)")
-    parser.add_argument("--set", action="append", metavar="name=value")
-    parser.add_argument("--amplitude", type=float, default=None, help="F0 [N]")
+    src.add_argument("--scene", default="kelvin_voigt", help=_SCENE_HELP)
+    src.add_argument("--file", default=None,
+                     help="a scene file (.toml or .json: structure, elements, load) instead "
+                          "of --scene")
+    parser.add_argument("--set", action="append", metavar="name=value", help=_SET_HELP)
+    parser.add_argument("--amplitude", type=float, default=None,
+                        help="forcing amplitude F0 [N] (default: the scene's)")
 
 
 def build_parser():
-    p = argparse.ArgumentParser(prog="absorber-jax",
-                                description="Impact and friction vibration absorbers in JAX")
-    sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("reproduce-paper", help="write the paper's figures and our amplitudes")
-    r.add_argument("--out", default="paper_figures")
-    r.add_argument("--quick", action="store_true", help="short simulations (smoke test)")
+    p = argparse.ArgumentParser(
+        prog="absorber-jax", formatter_class=_HelpFormatter,
+        description="Impact and friction vibration absorbers in JAX: simulations, "
+                    "steady-state frequency responses, continuation, attractor maps and "
+                    "tuning.  Files hold SI values (m, rad, s, N, rad/s), each CSV header "
+                    "naming its unit; plots show millimetres where labelled so.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    r = _command(sub, "reproduce-paper", "write the paper's figures and our amplitudes",
+                 "Simulate every scene of the paper and write its figures (PNG), "
+                 "summary.json and amplitudes.csv (SI units) to --out.")
+    r.add_argument("--out", default="paper_figures", help="output folder")
+    r.add_argument("--quick", action="store_true",
+                   help="short simulations (a smoke test, not the paper's durations)")
     r.set_defaults(func=cmd_reproduce)
-    s = sub.add_parser("simulate", help="simulate one scene, write CSV (and a PNG)")
-    s.add_argument("--scene", default="kelvin_voigt")
-    s.add_argument("--t1", type=float, default=2.0)
-    s.add_argument("--solver", default=None)
-    s.add_argument("--set", action="append", metavar="field=value")
-    s.add_argument("--out", default="trajectory.csv")
-    s.add_argument("--plot", default=None)
+    s = _command(sub, "simulate", "simulate one scene, write CSV (and a PNG)",
+                 "Integrate a preset scene from rest to --t1 and write the trajectory as CSV "
+                 "(t [s], the state x1 [m], v1 [m/s], x2 [m] (absolute), v2 [m/s], law "
+                 "states, the coupling force [N] and, for friction scenes, the friction "
+                 "force, force ratio and regime); optionally a PNG of x1 and x2 in mm.  A "
+                 "failed integration is reported with what to try (exit code 1).")
+    s.add_argument("--scene", default="kelvin_voigt", help=_SCENE_HELP)
+    s.add_argument("--t1", type=float, default=2.0, help="final time [s]")
+    s.add_argument("--solver", default=None,
+                   help="integrator: tsit5, dopri5, dopri8, bosh3, kvaerno3, kvaerno5 or auto "
+                        "(default: auto, implicit kvaerno5 for a stiff scene)")
+    s.add_argument("--set", action="append", metavar="name=value", help=_SET_HELP)
+    s.add_argument("--out", default="trajectory.csv", help="CSV file written (SI units)")
+    s.add_argument("--plot", default=None,
+                   help="PNG file of x1 and x2 against time, in mm (default: no plot)")
     s.set_defaults(func=cmd_simulate)
-    w = sub.add_parser("sweep", help="steady-state frequency response, CSV and PNG")
-    w.add_argument("--scene", default="kelvin_voigt")
-    w.add_argument("--omega", default="30:70:64", help="LO:HI:N [rad/s]")
-    w.add_argument("--amplitude", type=float, default=None, help="F0 [N] (scene default)")
-    w.add_argument("--set", action="append", metavar="field=value")
-    w.add_argument("--method", default="shooting", choices=["shooting", "marching"])
-    w.add_argument("--direction", default="parallel", choices=["parallel", "up", "down", "both"])
-    w.add_argument("--chunk", type=int, default=64)
-    w.add_argument("--out", default="frf.csv")
-    w.add_argument("--plot", default="frf.png")
+    w = _command(sub, "sweep", "steady-state frequency response, CSV and PNG",
+                 "Periodic steady states of a preset scene over a grid of forcing "
+                 "frequencies: a CSV with one row per frequency (omega [rad/s], the "
+                 "observable's amplitude [m], the absorber stroke x2 - x1 (relative motion) "
+                 "[m], each degree of freedom's absolute amplitude [m], stability, status "
+                 "and its text; nan at failed points) and a PNG in mm.  Failed points are "
+                 "listed on stderr with what to try.")
+    w.add_argument("--scene", default="kelvin_voigt", help=_SCENE_HELP)
+    w.add_argument("--omega", default="30:70:64",
+                   help="frequency grid LO:HI:N: N frequencies from LO to HI [rad/s]")
+    w.add_argument("--amplitude", type=float, default=None,
+                   help="forcing amplitude F0 [N] (default: the scene's)")
+    w.add_argument("--set", action="append", metavar="name=value", help=_SET_HELP)
+    w.add_argument("--method", default="shooting", choices=["shooting", "marching"],
+                   help="steady-state solver: shooting (Newton on the period map, from the "
+                        "linear guess; Floquet stability) or marching (integrate until the "
+                        "response repeats: the attractor reached from rest)")
+    w.add_argument("--direction", default="parallel", choices=["parallel", "up", "down", "both"],
+                   help="parallel: every frequency solved on its own; up / down: each "
+                        "frequency started from its neighbour's orbit as ω increases / "
+                        "decreases (follows a branch, shows hysteresis); both: up and down, "
+                        "written to <out>_up.csv and <out>_down.csv")
+    w.add_argument("--chunk", type=int, default=64,
+                   help="frequencies per compiled call (memory against compilation reuse)")
+    w.add_argument("--out", default="frf.csv", help="CSV file written (SI units)")
+    w.add_argument("--plot", default="frf.png",
+                   help="PNG file of the observable's amplitude in mm (empty: no plot)")
     w.set_defaults(func=cmd_sweep)
-    t = sub.add_parser("tune", help="tune absorber parameters to minimise the band peak")
-    t.add_argument("--scene", default="kelvin_voigt")
-    t.add_argument("--params", required=True, help="comma-separated, e.g. k1,c1,m")
-    t.add_argument("--band", required=True, help="LO:HI [rad/s]")
-    t.add_argument("--amplitude", type=float, default=None)
+    t = _command(sub, "tune", "tune absorber parameters to minimise the band peak",
+                 "Optimise absorber parameters (--params) so that the observable's amplitude "
+                 "over a frequency band is smallest (--objective); writes tuning.png, "
+                 "curves.csv (amplitude before and after [m]) and tuning.json to --out.")
+    t.add_argument("--scene", default="kelvin_voigt", help=_SCENE_HELP)
+    t.add_argument("--params", required=True,
+                   help="parameters tuned, comma-separated, e.g. k1,c1,m (required)")
+    t.add_argument("--band", required=True,
+                   help="frequency band LO:HI [rad/s] (required)")
+    t.add_argument("--amplitude", type=float, default=None,
+                   help="forcing amplitude F0 [N] (default: the scene's)")
     t.add_argument("--objective", default="exact_peak",
-                   choices=["exact_peak", "robust_peak", "peak", "mean_square"])
-    t.add_argument("--steps", type=int, default=40)
-    t.add_argument("--n-freq", type=int, default=32)
-    t.add_argument("--set", action="append", metavar="field=value")
-    t.add_argument("--bounds", action="append", metavar="name=LO:HI")
-    t.add_argument("--no-confirm", action="store_true", help="skip the marching check")
-    t.add_argument("--out", default="tuning")
+                   choices=["exact_peak", "robust_peak", "peak", "mean_square"],
+                   help="exact_peak: the band's largest amplitude, located exactly; "
+                        "robust_peak: also the coexisting stable responses; peak: a smooth "
+                        "maximum over the grid; mean_square: mean squared amplitude [m^2]")
+    t.add_argument("--steps", type=int, default=40,
+                   help="optimiser steps (SLSQP iterations for the peak objectives)")
+    t.add_argument("--n-freq", type=int, default=32,
+                   help="frequencies of the grid over the band")
+    t.add_argument("--set", action="append", metavar="name=value", help=_SET_HELP)
+    t.add_argument("--bounds", action="append", metavar="name=LO:HI",
+                   help="bounds of a tuned parameter in its SI unit, e.g. k1=100:2000; "
+                        "repeat for several (default: positive, unbounded)")
+    t.add_argument("--no-confirm", action="store_true",
+                   help="skip the check of the curves before and after by marching")
+    t.add_argument("--out", default="tuning", help="output folder")
     t.set_defaults(func=cmd_tune)
-    sc = sub.add_parser("scene", help="a scene file (TOML or JSON: structure, elements, "
-                        "load, sweep): sweep, CSV, JSON summary and PNG per degree of freedom")
-    sc.add_argument("file", help="scene file (.toml or .json); schema: absorber_jax/_scene.py")
+    sc = _command(sub, "scene", "a scene file: sweep, CSV, JSON summary and PNG per degree "
+                  "of freedom",
+                  "Load a scene file (TOML or JSON: structure, elements, load, sweep; schema "
+                  "in absorber_jax/_io/scene.py), sweep it, and write "
+                  "frequency_response.csv (SI units, nan at failed points), a PNG of every "
+                  "degree of freedom's amplitude and summary.json (peaks, failures with what "
+                  "to try); --simulate adds trajectory.csv and trajectory.png.")
+    sc.add_argument("file", help="scene file (.toml or .json)")
     sc.add_argument("--out", default="scene_out", help="output folder")
-    sc.add_argument("--set", action="append", metavar="name=value",
-                    help="replace a parameter, e.g. tmd1.k=5e4 or friction1.N=0.05")
-    sc.add_argument("--omega", default=None, help="LO:HI:N [rad/s] (default the file's sweep)")
-    sc.add_argument("--amplitude", type=float, default=None, help="F0 [N] (default the file's)")
-    sc.add_argument("--direction", default=None, choices=["parallel", "up", "down", "both"])
-    sc.add_argument("--method", default=None, choices=["shooting", "marching"])
-    sc.add_argument("--chunk", type=int, default=64)
+    sc.add_argument("--set", action="append", metavar="name=value", help=_SET_HELP)
+    sc.add_argument("--omega", default=None,
+                    help="frequency grid LO:HI:N [rad/s] (default: the file's [sweep])")
+    sc.add_argument("--amplitude", type=float, default=None,
+                    help="forcing amplitude F0 [N] (default: the file's)")
+    sc.add_argument("--direction", default=None, choices=["parallel", "up", "down", "both"],
+                    help="as for sweep (default: the file's, else parallel)")
+    sc.add_argument("--method", default=None, choices=["shooting", "marching"],
+                    help="as for sweep (default: the file's, else shooting)")
+    sc.add_argument("--chunk", type=int, default=64,
+                    help="frequencies per compiled call")
     sc.add_argument("--simulate", action="store_true",
-                    help="also simulate from rest at the peak (or [simulate] omega)")
+                    help="also simulate from rest at the observable's peak (or the file's "
+                         "[simulate] omega)")
     sc.add_argument("--progress", action="store_true", help="show a progress bar")
     sc.set_defaults(func=cmd_scene)
-    cn = sub.add_parser("continue", help="continuation of periodic orbits through folds, "
-                        "with bifurcations (CSV, JSON, PNG)")
+    cn = _command(sub, "continue", "continuation of periodic orbits through folds, with "
+                  "bifurcations (CSV, JSON, PNG)",
+                  "Follow a branch of periodic orbits in a parameter (pseudo-arclength "
+                  "continuation, through folds), locate its folds, period doublings and "
+                  "Neimark-Sacker bifurcations, and write branch.csv (SI units), "
+                  "summary.json and branches.png to --out.")
     _add_source(cn)
     cn.add_argument("--parameter", default="omega",
-                    help="omega, amplitude or a system parameter (k1, gap, tmd1.k, ...)")
-    cn.add_argument("--bounds", required=True, help="LO:HI of the parameter")
+                    help="the parameter continued in: omega [rad/s], amplitude [N] or a "
+                         "system parameter (k1, gap, tmd1.k, ...) in its SI unit")
+    cn.add_argument("--bounds", required=True,
+                    help="LO:HI of the parameter, in its unit (required)")
     cn.add_argument("--start", type=float, default=None,
-                    help="start value (omega: default the bound the direction leaves)")
+                    help="start value of the parameter (default: for omega, the bound the "
+                         "direction leaves; else the system's own value)")
     cn.add_argument("--omega", type=float, default=None,
-                    help="forcing frequency when continuing in another parameter")
-    cn.add_argument("--direction", default="up", choices=["up", "down"])
-    cn.add_argument("--n", type=int, default=1, help="period multiple")
-    cn.add_argument("--step", type=float, default=0.01)
-    cn.add_argument("--max-step", type=float, default=0.05)
-    cn.add_argument("--max-points", type=int, default=400)
+                    help="forcing frequency [rad/s] when continuing in another parameter "
+                         "(required then)")
+    cn.add_argument("--direction", default="up", choices=["up", "down"],
+                    help="the way the parameter moves first")
+    cn.add_argument("--n", type=int, default=1,
+                    help="period multiple of the orbits (in forcing periods)")
+    cn.add_argument("--step", type=float, default=0.01,
+                    help="first arclength step, dimensionless (the parameter over its "
+                         "start value, the orbit state over its scale)")
+    cn.add_argument("--max-step", type=float, default=0.05,
+                    help="largest arclength step, dimensionless (the parameter over its "
+                         "start value, the orbit state over its scale)")
+    cn.add_argument("--max-points", type=int, default=400, help="most points per branch")
     cn.add_argument("--switch", action="store_true",
                     help="also follow the period-2n branches born at period doublings")
-    cn.add_argument("--out", default="continuation")
-    cn.add_argument("--progress", action="store_true")
+    cn.add_argument("--out", default="continuation", help="output folder")
+    cn.add_argument("--progress", action="store_true", help="show a progress bar")
     cn.set_defaults(func=cmd_continue)
-    at = sub.add_parser("attractors", help="attractor map at one frequency, or a "
-                        "stroboscopic bifurcation diagram over a range (CSV, JSON, PNG)")
+    at = _command(sub, "attractors", "attractor map at one frequency, or a stroboscopic "
+                  "bifurcation diagram over a range (CSV, JSON, PNG)",
+                  "March many initial states at one forcing (--omega W) and group the "
+                  "responses they settle on (periodic, quasi-periodic, chaotic) with their "
+                  "statistics, or do so over a frequency range (--omega LO:HI:N) for a "
+                  "stroboscopic bifurcation diagram; writes attractors.csv (SI units), "
+                  "summary.json and a PNG to --out.")
     _add_source(at)
-    at.add_argument("--omega", required=True, help="W [rad/s], or LO:HI:N for a diagram")
-    at.add_argument("--samples", type=int, default=32, help="initial states")
-    at.add_argument("--seed", type=int, default=0)
-    at.add_argument("--n-max", type=int, default=8)
-    at.add_argument("--max-periods", type=int, default=2000)
+    at.add_argument("--omega", required=True,
+                    help="forcing frequency W [rad/s], or LO:HI:N for a diagram (required)")
+    at.add_argument("--samples", type=int, default=32,
+                    help="initial states, uniform in a box around rest")
+    at.add_argument("--seed", type=int, default=0, help="random seed of the initial states")
+    at.add_argument("--n-max", type=int, default=8,
+                    help="largest period multiple recognised (in forcing periods)")
+    at.add_argument("--max-periods", type=int, default=2000,
+                    help="marching budget per initial state, in forcing periods")
     at.add_argument("--give-up", type=int, default=None,
-                    help="periods after which a lane that is not settling stops "
-                         "(default max-periods / 4; = max-periods: march every lane to the end)")
-    at.add_argument("--window", type=int, default=40, help="periods of statistics")
-    at.add_argument("--out", default="attractors")
-    at.add_argument("--progress", action="store_true")
+                    help="forcing periods after which a lane that is not settling stops "
+                         "(default: max-periods / 4; = max-periods: march every lane to the "
+                         "end)")
+    at.add_argument("--window", type=int, default=40,
+                    help="forcing periods of the statistics window after marching")
+    at.add_argument("--out", default="attractors", help="output folder")
+    at.add_argument("--progress", action="store_true", help="show a progress bar")
     at.set_defaults(func=cmd_attractors)
-    wp = sub.add_parser("work-precision", help="error against run time for every law and solver")
-    wp.add_argument("--out", default="work_precision")
+    wp = _command(sub, "work-precision", "error against run time for every law and solver",
+                  "Run scripts/work_precision.py (needs the repository checkout): the error "
+                  "of every contact and friction law under every solver against run time.")
+    wp.add_argument("--out", default="work_precision", help="output folder")
     wp.add_argument("--resume", action="store_true",
                     help="reuse the per-scene results already written to --out")
-    wp.add_argument("--quick", action="store_true")
+    wp.add_argument("--quick", action="store_true",
+                    help="fewer tolerances, scenes and a shorter time budget (a smoke test)")
     wp.set_defaults(func=cmd_work_precision)
     return p
 
@@ -661,11 +836,10 @@ def build_parser():
 def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
+        return int(args.func(args) or 0)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    return 0
 
 
 if __name__ == "__main__":

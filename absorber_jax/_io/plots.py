@@ -1,8 +1,26 @@
-"""matplotlib figures of frequency responses."""
+"""matplotlib figures of frequency responses, continuation branches and bifurcation
+diagrams.
+
+Labels come from the results' own names and units (``result.signals``,
+:mod:`absorber_jax._core.units`): the observable's name (``x1``, ``floor3``, ``floor3 -
+floor2``), SI values shown in milli-units where that reads better (metres as mm, radians
+as mrad), the unit in the label.  Failed points (``status != 0``) have no value: the lines
+break there and a red cross on the bottom edge of the axes marks each.  Every legend entry
+is the artist drawn, so its marker is the plotted one.
+"""
 
 from __future__ import annotations
 
 import numpy as np
+
+from .._core.units import axis_label, display_scale, unit_of, with_unit
+
+# how a failed point is drawn: a red cross on the bottom edge of the axes (x in data
+# coordinates, y in axes coordinates), outside the clipping box
+FAILED_STYLE = dict(marker="x", ls="none", color="red", ms=6, mew=1.5, clip_on=False,
+                    zorder=5)
+# the line of a frequency response (NaN at failed points: it breaks there)
+RESPONSE_GID = "response"
 
 
 def _axes(path, ax):
@@ -26,43 +44,104 @@ def _save(plt, ax, own, path):
     return ax
 
 
-def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix=""):
-    """Primary amplitude against frequency for one or several :class:`FrequencyResponse`.
+def _scale_and_unit(si_unit, scale, unit):
+    """``(factor, unit shown)``: ``unit`` when given (with ``scale`` or 1), else the
+    displayed unit of :func:`display_scale` (``scale`` None), else ``scale`` applied to
+    the SI unit."""
+    if unit is not None:
+        return (1.0 if scale is None else float(scale)), unit
+    if scale is None:
+        return display_scale(si_unit)
+    factor, shown = display_scale(si_unit)
+    if float(scale) == 1.0:
+        return 1.0, si_unit
+    if float(scale) == factor:
+        return factor, shown
+    return float(scale), f"{si_unit} x {float(scale):g}"
 
-    Filled markers: stable orbits; open markers: unstable; colour by period multiple
-    (period-1, and subharmonics n > 1); red crosses on the axis: failed points."""
+
+def mark_failed(ax, x, label=None):
+    """Red crosses at ``x`` on the bottom edge of ``ax`` (failed points, which have no
+    value); returns the artist (None when ``x`` is empty)."""
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return None
+    return ax.plot(x, np.zeros_like(x), transform=ax.get_xaxis_transform(), label=label,
+                   **FAILED_STYLE)[0]
+
+
+def _label_once(seen, key, text):
+    """``text`` the first time ``key`` is seen, else None (one legend entry per style)."""
+    if key in seen:
+        return None
+    seen.add(key)
+    return text
+
+
+def _sweep_words(direction):
+    return {"up": "ω increasing", "down": "ω decreasing"}.get(direction, "")
+
+
+def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix="",
+                            field="amplitude", dof=None, scale=None, unit=None):
+    """``field`` (amplitude, rms or harmonic) of the observable, or of the degree of
+    freedom ``dof`` (``dof_<field>``), against ω for one or several
+    :class:`FrequencyResponse`.
+
+    A thin grey line joins the solved points (broken at failed ones); filled markers:
+    stable orbits, open markers: unstable, colour by period multiple (period-1, and
+    subharmonics n > 1); red crosses on the bottom edge: failed points.  Sweeps followed
+    point by point are told apart by their marker (▲ ω increasing, ▼ ω decreasing).
+    ``scale``, ``unit``: the values' display factor and unit (default metres as mm).
+    The y label names the observable (or ``dof``) and the unit."""
     plt, ax, own = _axes(path, ax)
     if not isinstance(frfs, (list, tuple)):
         frfs = [frfs]
     colors = plt.get_cmap("tab10")
-    markers = {"parallel": "o", "up": "^", "down": "v"}
+    markers = {"up": "^", "down": "v"}
+    key = field if dof is None else "dof_" + field
+    sig = frfs[0].signals
+    factor, shown = _scale_and_unit(unit_of(key, sig, dof), scale, unit)
+    seen = set()
     for frf in frfs:
-        om = np.asarray(frf.omegas)
-        amp = np.atleast_2d(frf.amplitude)
-        for p in range(amp.shape[0]):
-            a = amp[p] * 1e3
-            ok = np.atleast_2d(frf.status)[p] == 0
-            st = np.atleast_2d(frf.stable)[p]
-            nn = np.atleast_2d(frf.period_multiple)[p]
-            tag = label_prefix + frf.direction
+        om = np.asarray(frf.omegas, dtype=float)
+        values = (np.asarray(getattr(frf, field), dtype=float) if dof is None
+                  else np.asarray(frf.dof(dof, field), dtype=float))
+        values = np.atleast_2d(values)
+        status = np.atleast_2d(np.asarray(frf.status))
+        stable = np.atleast_2d(np.asarray(frf.stable)).astype(bool)
+        multiple = np.atleast_2d(np.asarray(frf.period_multiple))
+        mk = markers.get(frf.direction, "o")
+        for p in range(values.shape[0]):
+            ok = status[p] == 0
+            y = np.where(ok, values[p], np.nan) * factor
+            parts = [label_prefix.strip(), _sweep_words(frf.direction)]
             if frf.params:
-                tag += " " + ", ".join(f"{k}={np.asarray(v)[p]:.3g}" for k, v in frf.params.items())
-            ax.plot(om[ok], a[ok], "-", lw=0.6, color="0.6")
-            for n in np.unique(nn[ok]):
-                sel = ok & (nn == n)
-                c = colors(int(n) - 1)
-                mk = markers.get(frf.direction, "o")
-                ax.plot(om[sel & st], a[sel & st], mk, ms=4, color=c,
-                        label=f"{tag}: period-{n} stable")
-                if (sel & ~st).any():
-                    ax.plot(om[sel & ~st], a[sel & ~st], mk, ms=5, mfc="none", color=c,
-                            label=f"{tag}: period-{n} unstable")
+                parts.append(", ".join(f"{k}={np.asarray(v)[p]:.3g}"
+                                       for k, v in frf.params.items()))
+            tag = ", ".join(s for s in parts if s)
+            tag = tag + ": " if tag else ""
+            ax.plot(om, y, "-", lw=0.6, color="0.6", gid=RESPONSE_GID)
+            for n in np.unique(multiple[p][ok]):
+                sel = ok & (multiple[p] == n)
+                c = colors((int(n) - 1) % 10)
+                if (sel & stable[p]).any():
+                    ax.plot(om[sel & stable[p]], y[sel & stable[p]], mk, ls="none", ms=4,
+                            color=c, label=_label_once(seen, (tag, mk, n, True),
+                                                       f"{tag}period-{n} stable"))
+                if (sel & ~stable[p]).any():
+                    ax.plot(om[sel & ~stable[p]], y[sel & ~stable[p]], mk, ls="none", ms=5,
+                            mfc="none", color=c,
+                            label=_label_once(seen, (tag, mk, n, False),
+                                              f"{tag}period-{n} unstable"))
             if (~ok).any():
-                ax.plot(om[~ok], np.zeros((~ok).sum()), "x", color="red",
-                        label=f"{tag}: failed ({(~ok).sum()})")
-    ax.set(xlabel="ω [rad/s]", ylabel="primary amplitude (half peak-to-peak) [mm]", title=title)
+                mark_failed(ax, om[~ok], label=_label_once(
+                    seen, (tag, "failed"), f"{tag}failed ({int((~ok).sum())} points)"))
+    ax.set(xlabel=with_unit("forcing frequency ω", "rad/s"),
+           ylabel=axis_label(key, sig, dof, unit=shown), title=title)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    if seen:
+        ax.legend(fontsize=7)
     return _save(plt, ax, own, path)
 
 
@@ -71,71 +150,89 @@ BIFURCATION_STYLE = {"fold": ("o", "black", "fold"),
                      "neimark_sacker": ("D", "tab:green", "Neimark–Sacker")}
 
 
+def _parameter_label(br):
+    p = br.parameter
+    if p == "omega":
+        return with_unit("forcing frequency ω", "rad/s")
+    if p == "amplitude":
+        return with_unit("forcing amplitude F0", "N")
+    return with_unit(p, br.signals.parameter_unit(p))
+
+
 def plot_branches(branches, path=None, *, ax=None, dof=None, field="amplitude", title="",
-                  scale=1.0, unit=""):
+                  scale=None, unit=None):
     """Frequency–response curves from :func:`continuation`: stable parts solid, unstable
     parts dashed, one colour per period multiple, bifurcations marked (fold ●, period
-    doubling ■, Neimark–Sacker ◆).  ``dof``: plot ``dof_<field>`` at that degree of freedom
-    (default the system's observable, ``field`` = amplitude, rms or harmonic); ``scale``
-    multiplies the values (1e3 for mm)."""
+    doubling ■, Neimark–Sacker ◆; filled where located onto a zero of the test function,
+    open where the bracket closed on a jump of it), failed points as red crosses on the
+    bottom edge (the curve breaks there).  ``dof``: plot ``dof_<field>`` at that degree of
+    freedom (default the system's observable, ``field`` = amplitude, rms or harmonic);
+    ``scale``, ``unit``: the values' display factor and unit (default metres as mm)."""
     plt, ax, own = _axes(path, ax)
     if not isinstance(branches, (list, tuple)):
         branches = [branches]
     colors = plt.get_cmap("tab10")
+    key = field if dof is None else "dof_" + field
+    sig = branches[0].signals
+    factor, shown = _scale_and_unit(unit_of(key, sig, dof), scale, unit)
     seen = set()
     for br in branches:
-        x = np.asarray(br.values)
-        y = (np.asarray(getattr(br, field)) if dof is None else br.dof(dof, field)) * scale
+        x = np.asarray(br.values, dtype=float)
         ok = np.asarray(br.status) == 0
+        y = (np.asarray(getattr(br, field), dtype=float) if dof is None
+             else np.asarray(br.dof(dof, field), dtype=float))
+        y = np.where(ok, y, np.nan) * factor
         st = np.asarray(br.stable).astype(bool)
         c = colors((br.period_multiple - 1) % 10)
         # segment (i, i+1) solid when both ends are stable, dashed otherwise; runs of one
-        # style drawn as one line
-        seg = np.array([(ok[i] and ok[i + 1], bool(st[i] and st[i + 1]))
-                        for i in range(len(x) - 1)]).reshape(-1, 2)
+        # style drawn as one line; a failed end leaves the segment out
+        seg = [(bool(ok[i] and ok[i + 1]), bool(st[i] and st[i + 1]))
+               for i in range(len(x) - 1)]
         i = 0
         while i < len(seg):
             j = i
-            while j + 1 < len(seg) and tuple(seg[j + 1]) == tuple(seg[i]):
+            while j + 1 < len(seg) and seg[j + 1] == seg[i]:
                 j += 1
             valid, stable = seg[i]
             if valid:
-                key = (br.period_multiple, bool(stable))
+                words = "stable" if stable else "unstable"
                 ax.plot(x[i:j + 2], y[i:j + 2], "-" if stable else "--", color=c,
                         lw=1.4 if stable else 1.0,
-                        label=None if key in seen else
-                        f"period-{br.period_multiple} {'stable' if stable else 'unstable'}")
-                seen.add(key)
+                        label=_label_once(seen, (br.period_multiple, stable),
+                                          f"period-{br.period_multiple} {words}"))
             i = j + 1
         for b in br.bifurcations:
             mk, col, name = BIFURCATION_STYLE[b.kind]
-            yb = b.amplitude if (dof is None and field == "amplitude") else np.interp(
-                b.value, x[b.index:b.index + 2] if x[b.index] < x[b.index + 1]
-                else x[b.index:b.index + 2][::-1],
-                y[b.index:b.index + 2] if x[b.index] < x[b.index + 1]
-                else y[b.index:b.index + 2][::-1])
-            yb = yb * (scale if (dof is None and field == "amplitude") else 1.0)
-            ax.plot([b.value], [yb], mk, color=col, ms=6, mfc="white" if not b.located else col,
-                    label=None if b.kind in seen else name)
-            seen.add(b.kind)
+            if dof is None and field == "amplitude":
+                yb = float(b.amplitude) * factor
+            else:
+                xs, ys = x[b.index:b.index + 2], y[b.index:b.index + 2]
+                order = np.argsort(xs)
+                yb = float(np.interp(b.value, xs[order], ys[order]))
+            text = name if b.located else f"{name} (not located: a jump)"
+            ax.plot([b.value], [yb], mk, ls="none", color=col, ms=6,
+                    mfc=col if b.located else "white",
+                    label=_label_once(seen, (b.kind, bool(b.located)), text))
         if (~ok).any():
-            ax.plot(x[~ok], np.zeros((~ok).sum()), "x", color="red")
-    ax.set(xlabel=branches[0].parameter + (" [rad/s]" if branches[0].parameter == "omega"
-                                           else ""),
-           ylabel=(f"{field}" + (f" of {dof}" if dof else "") + (f" [{unit}]" if unit else "")),
+            mark_failed(ax, x[~ok], label=_label_once(seen, "failed", "failed"))
+    ax.set(xlabel=_parameter_label(branches[0]), ylabel=axis_label(key, sig, dof, unit=shown),
            title=title)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    if seen:
+        ax.legend(fontsize=7)
     return _save(plt, ax, own, path)
 
 
-def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=1.0, unit=""):
+def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=None, unit=None):
     """Stroboscopic bifurcation diagram from :func:`bifurcation_diagram`: the observable at
     ``t = kT`` over the statistics window, for every initial state, against ``ω``; periodic
     responses in colour by period multiple (a period-n orbit shows n points), the others
-    grey."""
+    grey.  ``scale``, ``unit``: the values' display factor and unit (default metres as
+    mm)."""
     plt, ax, own = _axes(path, ax)
     colors = plt.get_cmap("tab10")
+    sig = maps[0].signals
+    factor, shown = _scale_and_unit(unit_of("section", sig), scale, unit)
     seen = set()
     for m in maps:
         for k in range(m.section.shape[0]):
@@ -143,11 +240,11 @@ def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=1.0, u
             n = int(m.steady.period_multiple[k]) if ok else 0
             c = colors((n - 1) % 10) if ok else "0.6"
             lab = (f"period-{n}" if ok else "not periodic")
-            ax.plot(np.full(m.section.shape[1], m.omega), m.section[k] * scale, ".", ms=1.5,
-                    color=c, label=None if lab in seen else lab)
-            seen.add(lab)
-    ax.set(xlabel="ω [rad/s]", ylabel="observable at t = kT" + (f" [{unit}]" if unit else ""),
-           title=title)
+            ax.plot(np.full(m.section.shape[1], m.omega), m.section[k] * factor, ".",
+                    ls="none", ms=1.5, color=c, label=_label_once(seen, lab, lab))
+    ax.set(xlabel=with_unit("forcing frequency ω", "rad/s"),
+           ylabel=axis_label("section", sig, unit=shown), title=title)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, markerscale=4)
+    if seen:
+        ax.legend(fontsize=7, markerscale=4)
     return _save(plt, ax, own, path)

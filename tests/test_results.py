@@ -149,7 +149,7 @@ def _legend_matches_artists(ax):
 
 
 def test_to_xarray_and_to_dataframe_hold_the_arrays_with_units_and_names(kv_sweep, tmp_path):
-    _, frf = kv_sweep
+    system, frf = kv_sweep
     ds = frf.to_xarray()
     np.testing.assert_array_equal(ds["omega"].values, frf.omegas)
     assert ds["omega"].attrs["units"] == "rad/s"
@@ -169,6 +169,11 @@ def test_to_xarray_and_to_dataframe_hold_the_arrays_with_units_and_names(kv_swee
     names = ds["status_name"].values
     assert set(names[np.asarray(frf.status) != 0]) == {"MAX_STEPS"}
     assert set(names[np.asarray(frf.status) == 0]) == {"SUCCESS"}
+    # the batched SteadyState on its own, named after its system
+    ss = frf.steady.to_xarray(system)
+    assert ss["amplitude"].dims == ("point",) and ss["state"].dims == ("point", "component")
+    np.testing.assert_array_equal(ss["absorber_amplitude"].values, frf.absorber_amplitude)
+    assert ss["absorber_amplitude"].attrs == ds["absorber_amplitude"].attrs
     # the data frame is the CSV's table
     df = frf.to_dataframe()
     path = tmp_path / "frf.csv"

@@ -1,4 +1,5 @@
-"""Design objectives for :func:`absorber_jax.tune`, as objects carrying their options.
+"""Design objectives for [`absorber_jax.tune`][absorber_jax.tune], as objects carrying their
+options.
 
 ```python
 import absorber_jax as aj

@@ -88,8 +88,9 @@ def friction(name: str = "coulomb", *, normal_force: float = FRICTION_NORMAL_FOR
              amplitude: float = FRICTION_F0, ramp_time: float | None = FRICTION_RAMP):
     """``(FrictionAbsorber, forcing)`` of the paper's Table 4 or 5.
 
-    m1 = m2 = 1 kg, k1 = k2 = 1e4 N/m, undamped.  The forcing is a :class:`RampedHarmonic`
-    (``ramp_time`` s) or, with ``ramp_time=None``, a constant :class:`Harmonic`."""
+    m1 = m2 = 1 kg, k1 = k2 = 1e4 N/m, undamped.  The forcing is a
+    [`RampedHarmonic`][absorber_jax.RampedHarmonic] (``ramp_time`` s) or, with ``ramp_time=None``, a
+    constant [`Harmonic`][absorber_jax.Harmonic]."""
     law = friction_law(name, eps=eps)
     system = FrictionAbsorber(m1=1.0, k1=1e4, c1=0.0, m2=1.0, k2=1e4, c2=0.0,
                               normal_force=normal_force, friction=law)

@@ -1,13 +1,13 @@
 """JAX's persistent compilation cache, on by default, so that a compiled program is paid for
 once per machine rather than once per process.
 
-On import, :mod:`absorber_jax` points JAX's compilation cache (``jax_compilation_cache_dir``)
+On import, ``absorber_jax`` points JAX's compilation cache (``jax_compilation_cache_dir``)
 at ``$ABSORBER_JAX_CACHE_DIR``, else ``$XDG_CACHE_HOME/absorber_jax/jax``, else
 ``~/.cache/absorber_jax/jax``: every program that took JAX at least
 ``jax_persistent_cache_min_compile_time_secs`` (1 s by default) to compile is written there
 and read back by later processes, which then pay only the tracing.  It is left alone when
 the user has set a cache directory already; ``ABSORBER_JAX_CACHE=0`` (or ``off``) before
-the import, or :func:`disable_compilation_cache` before the first computation, turns it off.
+the import, or ``disable_compilation_cache`` before the first computation, turns it off.
 
 JAX does not write executables that hold host callbacks, and equinox's runtime checks
 (``eqx.error_if``) become host callbacks in their default ``EQX_ON_ERROR=raise`` mode.  The
@@ -42,7 +42,7 @@ def default_cache_dir() -> pathlib.Path:
 
 def enable_compilation_cache(path=None) -> pathlib.Path | None:
     """Point JAX's persistent compilation cache at ``path`` (default
-    :func:`default_cache_dir`); returns the directory, or ``None`` when it cannot be
+    ``default_cache_dir``); returns the directory, or ``None`` when it cannot be
     created (read-only home: the cache stays off, nothing else changes)."""
     where = pathlib.Path(path).expanduser() if path is not None else default_cache_dir()
     try:

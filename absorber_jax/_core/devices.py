@@ -3,8 +3,8 @@ devices, and asking JAX for one CPU device per core.
 
 On a CPU JAX has one device and a sweep's compiled calls run on one core: the point solves
 are long chains of small operations (a 44 × 44 tangent, a period's 600 steps) that XLA does
-not spread over cores.  :func:`use_cpu_cores` asks for one CPU device per core; the sweeps
-then give each device its own parts (:func:`on_devices`) and the cores run them side by side.
+not spread over cores.  ``use_cpu_cores`` asks for one CPU device per core; the sweeps
+then give each device its own parts (``on_devices``) and the cores run them side by side.
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from jax.sharding import Mesh, PartitionSpec
 
 def use_cpu_cores(n=None):
     """Make JAX's CPU backend expose ``n`` devices (default: the cores this process may run
-    on), so that :func:`frequency_response` and the other sweeps run their parts on ``n``
-    cores side by side.  Call it before the first JAX computation (JAX fixes its devices
-    then); it raises ``RuntimeError`` after.  Returns the number of CPU devices.
+    on), so that [`frequency_response`][absorber_jax.frequency_response] and the other sweeps run
+    their parts on ``n`` cores side by side.  Call it before the first JAX computation (JAX fixes
+    its devices then); it raises ``RuntimeError`` after.  Returns the number of CPU devices.
 
     Measured on 2 cores (``scripts/benchmark_structure.py``: the 20-storey building with two
     friction dampers, 256 frequencies): 15.9 s on one device, 8.6 s on two (8.1 s and
@@ -114,7 +114,7 @@ def by_parts(rows, size, solve, ndev, progress=False):
     lane), ``size // ndev`` rows at a time on each of ``ndev`` devices (``size`` a multiple
     of ``ndev``), the last part padded by repeating its last row (one compilation serves
     all); the results of the real rows, concatenated.  The devices work through the parts in
-    turn, each taking the next as soon as it is done (:func:`on_devices`); ``progress``: a
+    turn, each taking the next as soon as it is done (``on_devices``); ``progress``: a
     tqdm bar over the parts."""
     from tqdm.auto import tqdm
 
@@ -137,12 +137,12 @@ def lanes_on_devices(one, shared, *lanes, ndev):
     lanes split into ``ndev`` equal parts, one on each of the first ``ndev`` local devices,
     inside a jitted function: one SPMD program (``jax.shard_map``; no communication between the
     parts, each device runs its own loops to their own ends), compiled and traced once for
-    all the devices, where :func:`by_parts` compiles a program per device, each traced
+    all the devices, where ``by_parts`` compiles a program per device, each traced
     again under the interpreter lock (the hard Kelvin–Voigt scene's batched continuation
     corrector, 16 lanes on two CPU devices: 10.9 s -> 8.1 s to the first result, 1.04 ->
     0.84 s a call after).  ``shared`` (a pytree, its arrays replicated) is the same for all
-    lanes; the number of lanes must be a multiple of ``ndev`` (see :func:`device_parts`).
-    Call it under :func:`one_blas_thread`."""
+    lanes; the number of lanes must be a multiple of ``ndev`` (see ``device_parts``).
+    Call it under ``one_blas_thread``."""
     def f(shared, *lanes):
         return jax.vmap(lambda *lane: one(shared, *lane))(*lanes)
 
@@ -159,7 +159,7 @@ def lanes_on_devices(one, shared, *lanes, ndev):
 
 def device_parts(size):
     """The local devices a batch of ``size`` lanes is split over by
-    :func:`lanes_on_devices`: all of them where each gets at least two lanes and an equal
+    ``lanes_on_devices``: all of them where each gets at least two lanes and an equal
     share, else one."""
     ndev = jax.local_device_count()
     return ndev if size % ndev == 0 and size >= 2 * ndev else 1
@@ -167,7 +167,7 @@ def device_parts(size):
 
 def one_blas_thread(ndev):
     """A context holding BLAS (OpenBLAS, under XLA's LAPACK calls) to one thread while
-    ``ndev > 1`` devices run (see :func:`on_devices`); a no-op on one device."""
+    ``ndev > 1`` devices run (see ``on_devices``); a no-op on one device."""
     if ndev <= 1:
         return contextlib.nullcontext()
     from threadpoolctl import threadpool_limits

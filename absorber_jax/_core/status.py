@@ -85,7 +85,7 @@ def flag_attributes() -> dict:
 
 
 # the per-point measurements of a steady-state result (SteadyState fields): meaningless at a
-# failed point, where they are set to NaN (:func:`nan_where_failed`)
+# failed point, where they are set to NaN (``nan_where_failed``)
 MEASURED = ("amplitude", "rms", "harmonic", "absorber_amplitude", "absorber_rms", "impacts",
             "dof_amplitude", "dof_rms", "dof_harmonic", "multipliers")
 
@@ -108,7 +108,7 @@ def nan_where_failed(result, fields=MEASURED):
 
 
 def from_diffrax(result):
-    """Map a diffrax ``RESULTS`` value to a :class:`Status` code (jit-compatible)."""
+    """Map a diffrax ``RESULTS`` value to a ``Status`` code (jit-compatible)."""
     ok = result == diffrax.RESULTS.successful
     maxed = result == diffrax.RESULTS.max_steps_reached
     return jnp.where(ok, Status.SUCCESS, jnp.where(maxed, Status.MAX_STEPS, Status.SOLVER_FAILED))

@@ -1,5 +1,5 @@
 """Results as tables and labelled datasets: the columns of their CSV files and data frames
-(headers with SI units, :mod:`units`) and their ``xarray.Dataset`` s, built from the one
+(headers with SI units, ``units``) and their ``xarray.Dataset``s, built from the one
 table of units and labels (``units.FIELDS``).
 
 The result classes (``FrequencyResponse``, ``Branch``, ``SteadyState``, ``Trajectory``,
@@ -95,7 +95,7 @@ def steady_columns(steady, signals, dof_names, rows):
 
 def frequency_response_columns(frf):
     """One row per (design, frequency): the sweep direction, the design parameters, ``omega``
-    and :func:`steady_columns`."""
+    and ``steady_columns``."""
     sig = frf.signals
     status = np.atleast_2d(np.asarray(frf.status))
     P, F = status.shape
@@ -109,7 +109,7 @@ def frequency_response_columns(frf):
 
 
 def branch_columns(br):
-    """One row per branch point: its index, the parameter and :func:`steady_columns`."""
+    """One row per branch point: its index, the parameter and ``steady_columns``."""
     sig = br.signals
     n = len(br)
     return ([("point", np.arange(n)),
@@ -257,7 +257,7 @@ def _dataset_attrs(signals, **extra):
 
 
 def frequency_response_dataset(frf):
-    """``xarray.Dataset`` of a :class:`FrequencyResponse` over ``omega`` (and ``design``
+    """``xarray.Dataset`` of a ``FrequencyResponse`` over ``omega`` (and ``design``
     when it holds several designs, with each design parameter as a coordinate)."""
     xr = require("xarray", "FrequencyResponse.to_xarray")
     sig = frf.signals
@@ -276,7 +276,7 @@ def frequency_response_dataset(frf):
 
 
 def branch_dataset(br):
-    """``xarray.Dataset`` of a continuation :class:`Branch` over its ``point`` s (the
+    """``xarray.Dataset`` of a continuation ``Branch`` over its ``point``s (the
     parameter a coordinate along them: it turns back at folds), with its bifurcations over
     ``bifurcation``."""
     xr = require("xarray", "Branch.to_xarray")
@@ -306,7 +306,7 @@ def branch_dataset(br):
 
 
 def steady_dataset(ss, system=None):
-    """``xarray.Dataset`` of a :class:`SteadyState` (one orbit, or a batch over
+    """``xarray.Dataset`` of a ``SteadyState`` (one orbit, or a batch over
     ``point``); names and units from ``system`` when given, else generic."""
     xr = require("xarray", "SteadyState.to_xarray")
     sig = signals_of(system) if system is not None else Signals(
@@ -319,7 +319,7 @@ def steady_dataset(ss, system=None):
 
 
 def trajectory_dataset(tr):
-    """``xarray.Dataset`` of a :class:`Trajectory` over ``time`` [s]: one variable per
+    """``xarray.Dataset`` of a ``Trajectory`` over ``time`` [s]: one variable per
     public state component (with its unit), the degrees of freedom over ``dof``, the
     observable, the coupling force(s) and whatever friction and energy fields it holds."""
     xr = require("xarray", "Trajectory.to_xarray")
@@ -368,7 +368,7 @@ def trajectory_dataset(tr):
 
 
 def attractor_dataset(am):
-    """``xarray.Dataset`` of an :class:`AttractorMap` over its initial states (``sample``):
+    """``xarray.Dataset`` of an ``AttractorMap`` over its initial states (``sample``):
     the initial states, window statistics, stroboscopic samples (``sample``, ``period``),
     the attractor label, the marching result; the distinct attractors over ``attractor``."""
     xr = require("xarray", "AttractorMap.to_xarray")

@@ -3,14 +3,14 @@ result classes' CSV writers, ``to_xarray`` / ``to_dataframe`` and the plots shar
 
 Files and datasets hold SI values (metres, radians, seconds, newtons); a CSV header names
 each column's unit (``omega [rad/s]``, ``amplitude x1 [m]``).  Plots may show millimetres and
-say so in their labels (:func:`display_scale`).
+say so in their labels (``display_scale``).
 
 What a result measures depends on its system: the *observable* (the signal of
 ``amplitude``, ``rms``, ``harmonic``: ``x1`` for the two-mass systems, a degree of freedom
 or a weighted set of them for a structure), the absorber *stroke* (the absorber's motion
 relative to its host: ``x2 - x1``), the degrees of freedom (``dof_*``: absolute
-displacements) and the state components.  :func:`signals_of` reads them off a system into a
-:class:`Signals`, which results carry.  Columns:
+displacements) and the state components.  ``signals_of`` reads them off a system into a
+``Signals``, which results carry.  Columns:
 
 - ``amplitude <observable> [m]`` (also ``rms``, ``harmonic``): the observable;
 - ``amplitude <stroke> [m]`` (also ``rms``), e.g. ``amplitude x2 - x1 [m]``: the relative
@@ -94,7 +94,7 @@ _PARAMETER_UNITS = {
 
 @dataclasses.dataclass(frozen=True)
 class Signals:
-    """What a system's results measure, by name and SI unit (:func:`signals_of`).
+    """What a system's results measure, by name and SI unit (``signals_of``).
 
     ``observable``: the signal of ``amplitude``, ``rms``, ``harmonic`` (``"x1"``, a
     degree of freedom, or a weighted sum such as ``"floor3 - floor2"``); ``stroke``: the
@@ -199,7 +199,7 @@ def _parameter_unit(system, name):
 
 
 def signals_of(system) -> Signals:
-    """The :class:`Signals` of a system (read off its public members: ``output_names``,
+    """The ``Signals`` of a system (read off its public members: ``output_names``,
     ``state_names``, ``parameter_names``; a structure's ``observe`` weights and elements)."""
     dof_names = tuple(system.output_names)
     structure = getattr(system, "structure", None)
@@ -297,7 +297,7 @@ def display_scale(unit):
 
 def axis_label(field, signals: Signals | None = None, dof=None, unit=None) -> str:
     """An axis label: the field's long name with the signal's name, and ``unit`` (default
-    the displayed unit of :func:`display_scale`) in brackets."""
+    the displayed unit of ``display_scale``) in brackets."""
     if unit is None:
         unit = display_scale(unit_of(field, signals, dof))[1]
     return with_unit(long_name(field, signals, dof), unit)

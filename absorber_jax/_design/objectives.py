@@ -1,21 +1,21 @@
-"""Design objectives: what :func:`tune` minimises over a frequency band, as objects carrying
+"""Design objectives: what ``tune`` minimises over a frequency band, as objects carrying
 their options.
 
 All objectives measure the steady-state amplitude of the system's observable (the primary's
 displacement for the two-mass absorbers, ``observe=`` of a structure) [m] under a harmonic
 force of amplitude ``F0`` [N], over a band ``(lo, hi)`` [rad/s] sampled at ``n_freq`` points.
 
-- :class:`ExactPeak` (the default of :func:`tune`): the band's largest amplitude, its peaks
+- ``ExactPeak`` (the default of ``tune``): the band's largest amplitude, its peaks
   located exactly where ``dA/dω = 0`` on the orbit family and differentiated by the envelope
   theorem; minimised as the minimax problem it is (``min t`` subject to ``A_j(θ) <= t``, by
   SLSQP on the epigraph).  Reaches equal-peak (H∞) optima to the solver's tolerance.
-- :class:`RobustPeak`: :class:`ExactPeak` plus the stable coexisting responses found by
+- ``RobustPeak``: ``ExactPeak`` plus the stable coexisting responses found by
   attractor maps: the worst response the structure can settle on.
-- :class:`SmoothPeak`: the smooth maximum of the grid amplitudes,
+- ``SmoothPeak``: the smooth maximum of the grid amplitudes,
   ``τ log Σ exp(a_i/τ) - τ log F`` with ``τ = softness · max a``: a lower bound of the grid's
   maximum within ``τ log n_freq``, and the grid itself misses peaks between its points.
   Cheaper per step; its optimum is biased (a few per cent on a tuned mass damper).
-- :class:`MeanSquare`: ``mean(a_i²)`` over the grid (an H2-like band average).
+- ``MeanSquare``: ``mean(a_i²)`` over the grid (an H2-like band average).
 
 ```python
 import absorber_jax as aj
@@ -42,7 +42,7 @@ def _positive_int(owner, name, value, lo):
 
 
 class AbstractObjective(eqx.Module):
-    """A band objective for :func:`tune`: the amplitudes it looks at (``n_freq`` grid points
+    """A band objective for ``tune``: the amplitudes it looks at (``n_freq`` grid points
     over the band) and how they are reduced to one number.
 
     ``kind`` names the reduction the optimisers dispatch on; ``options()`` gives the keyword
@@ -97,7 +97,7 @@ class RobustPeak(AbstractObjective):
     larger than what the objective sees is followed by shooting as the design moves (one
     more minimax constraint); the maps run again at each result, and a new larger response
     starts another of at most ``rounds`` minimax rounds.  ``n_freq``, ``peaks``, ``modes``,
-    ``stability_margin``: as :class:`ExactPeak`."""
+    ``stability_margin``: as ``ExactPeak``."""
 
     kind: ClassVar[str] = "robust_peak"
     n_freq: int = 32
@@ -156,8 +156,8 @@ BY_NAME = {"exact_peak": ExactPeak, "robust_peak": RobustPeak, "peak": SmoothPea
 
 
 def as_objective(objective, where):
-    """An :class:`AbstractObjective` from an objective object or one of the names
-    ``"exact_peak"``, ``"robust_peak"``, ``"peak"`` (:class:`SmoothPeak`), ``"mean_square"``
+    """An ``AbstractObjective`` from an objective object or one of the names
+    ``"exact_peak"``, ``"robust_peak"``, ``"peak"`` (``SmoothPeak``), ``"mean_square"``
     (each with its default options)."""
     if objective is None:
         return ExactPeak()

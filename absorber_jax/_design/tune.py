@@ -240,7 +240,7 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
           softness, peaks, tol, rtol, atol, newton_steps, solver, progress, confirm,
           confirm_points, confirm_samples, stability_margin, starts, n_starts, modes, probes,
           probe_samples, rounds, callback):
-    """:func:`tune` with the objective's options unpacked (``objective`` its ``kind``)."""
+    """``tune`` with the objective's options unpacked (``objective`` its ``kind``)."""
     require_x64("tune")
     import optax
 

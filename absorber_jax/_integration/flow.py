@@ -7,7 +7,7 @@ component.  Derivatives (shooting's Jacobian, Floquet multipliers, design gradie
 computed in forward mode: through diffrax ``ForwardMode`` for explicit solvers on non-stiff
 scenes; by forward sensitivity equations for implicit solvers and for explicit ones on
 stiff-ish scenes (steps then controlled on the tangents too); through the event times for
-hybrid systems (:mod:`_integration.stickslip`).  The flow carries a custom JVP whose tangent
+hybrid systems (``_integration.stickslip``).  The flow carries a custom JVP whose tangent
 is a linear map of the input tangents (the forward Jacobian applied to them), so JAX can
 transpose it: ``jax.grad`` works too and gives the forward-mode numbers.
 """
@@ -68,7 +68,7 @@ TANGENT_CONTROL_STEPS_PER_PERIOD = 2.0e3
 
 def state_scale(system, forcing):
     """Per-component scale of the internal state (the system's own, see
-    :meth:`AbstractAbsorberSystem.state_scale`)."""
+    ``AbstractAbsorberSystem.state_scale``)."""
     return system.state_scale(forcing)
 
 
@@ -92,7 +92,7 @@ def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
 def _integrate(dyn, x0, t0, t1, ts, cfg):
     """Scaled states of ``dyn`` from ``x0`` at ``t0`` saved at ``ts`` (or at ``t1`` only when
     ``ts`` is None), and the status: smooth systems by one diffrax solve, hybrid ones
-    (exact stick–slip) segment by segment (:mod:`_integration.stickslip`)."""
+    (exact stick–slip) segment by segment (``_integration.stickslip``)."""
     system, forcing = dyn
     if system.hybrid:
         ys, x, status, _, _ = hybrid_solve(
@@ -119,7 +119,7 @@ def _flow(dyn, x0, t1, ts, *, cfg):
     forward *and* reverse mode (``jax.jacfwd``, ``jax.linearize``, ``jax.grad``).
 
     Derivatives are forward sensitivities (through diffrax ``ForwardMode``, or by
-    :func:`_sensitivity_jacobian`) with respect to the inputs
+    ``_sensitivity_jacobian``) with respect to the inputs
     that carry a tangent, assembled into a Jacobian, whose product with the tangent is
     linear in it: JAX transposes that product for reverse mode.  A design has a handful of
     parameters and the state a handful of components, so this costs what forward mode costs
@@ -230,10 +230,10 @@ SENSITIVITY_STATES = 12
 
 def large_state(system):
     """Whether ``system`` has a large state (>= ``SENSITIVITY_STATES``): derivatives by
-    sensitivity equations, integrated lane by lane under vmap (:func:`lane_by_lane`),
+    sensitivity equations, integrated lane by lane under vmap (``lane_by_lane``),
     Floquet monodromies coarse first (``_orbit.floquet_matrix``), chained sweep lanes one
     at a time, a smooth system's plain integrations with unrolled stages
-    (:func:`_integrate`)."""
+    (``_integrate``)."""
     return system.num_states >= SENSITIVITY_STATES
 
 
@@ -284,7 +284,7 @@ def lane_by_lane(fn):
 
 
 def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
-    """The Jacobian of :func:`_flow` in the flat input vector ``vec`` (``rebuild(vec)`` =
+    """The Jacobian of ``_flow`` in the flat input vector ``vec`` (``rebuild(vec)`` =
     ``(dyn, x0)``; the save times fixed) by the matrix sensitivity equations
     ``Ẋ_v = ∂f/∂x X_v + ∂f/∂v``, all ``m`` input directions integrated together with the
     state in one solve.
@@ -341,10 +341,10 @@ def flow_along(dyn, x0, v0, t1, ts, cfg):
     derivative along the single direction ``v0`` saved with them, and the status.
 
     One integration of the state and that tangent together, with steps controlled on both
-    (as :func:`accurate_tangents`): what a Lyapunov exponent needs, at the cost of one
-    tangent rather than the ``n`` of a Jacobian (``jax.jvp`` of :func:`_flow` assembles the
+    (as ``accurate_tangents``): what a Lyapunov exponent needs, at the cost of one
+    tangent rather than the ``n`` of a Jacobian (``jax.jvp`` of ``_flow`` assembles the
     full Jacobian first).  Hybrid (exact stick–slip) systems, whose tangent crosses events,
-    take ``jax.jvp`` of :func:`_flow`.  Returns ``(ys, vs, status)``."""
+    take ``jax.jvp`` of ``_flow``.  Returns ``(ys, vs, status)``."""
     if dyn[0].hybrid:
         (ys, status), (vs, _) = jax.jvp(lambda z: _flow(dyn, z, t1, ts, cfg=cfg), (x0,), (v0,))
         return ys, vs, status

@@ -638,7 +638,7 @@ def _command(sub, name, help, description):
 
 
 def _add_source(parser):
-    """--scene | --file, --set, --amplitude: what :func:`_load_system` reads."""
+    """--scene | --file, --set, --amplitude: what ``_load_system`` reads."""
     src = parser.add_mutually_exclusive_group()
     src.add_argument("--scene", default="kelvin_voigt", help=_SCENE_HELP)
     src.add_argument("--file", default=None,

@@ -2,7 +2,7 @@
 diagrams.
 
 Labels come from the results' own names and units (``result.signals``,
-:mod:`absorber_jax._core.units`): the observable's name (``x1``, ``floor3``, ``floor3 -
+``absorber_jax._core.units``): the observable's name (``x1``, ``floor3``, ``floor3 -
 floor2``), SI values shown in milli-units where that reads better (metres as mm, radians
 as mrad), the unit in the label.  Failed points (``status != 0``) have no value: the lines
 break there and a red cross on the bottom edge of the axes marks each.  Every legend entry
@@ -46,7 +46,7 @@ def _save(plt, ax, own, path):
 
 def _scale_and_unit(si_unit, scale, unit):
     """``(factor, unit shown)``: ``unit`` when given (with ``scale`` or 1), else the
-    displayed unit of :func:`display_scale` (``scale`` None), else ``scale`` applied to
+    displayed unit of ``display_scale`` (``scale`` None), else ``scale`` applied to
     the SI unit."""
     if unit is not None:
         return (1.0 if scale is None else float(scale)), unit
@@ -86,7 +86,7 @@ def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix=
                             field="amplitude", dof=None, scale=None, unit=None):
     """``field`` (amplitude, rms or harmonic) of the observable, or of the degree of
     freedom ``dof`` (``dof_<field>``), against ω for one or several
-    :class:`FrequencyResponse`.
+    [`FrequencyResponse`][absorber_jax.FrequencyResponse].
 
     A thin grey line joins the solved points (broken at failed ones); filled markers:
     stable orbits, open markers: unstable, colour by period multiple (period-1, and
@@ -161,9 +161,9 @@ def _parameter_label(br):
 
 def plot_branches(branches, path=None, *, ax=None, dof=None, field="amplitude", title="",
                   scale=None, unit=None):
-    """Frequency–response curves from :func:`continuation`: stable parts solid, unstable
-    parts dashed, one colour per period multiple, bifurcations marked (fold ●, period
-    doubling ■, Neimark–Sacker ◆; filled where located onto a zero of the test function,
+    """Frequency–response curves from [`continuation`][absorber_jax.continuation]: stable parts
+    solid, unstable parts dashed, one colour per period multiple, bifurcations marked (fold ●,
+    period doubling ■, Neimark–Sacker ◆; filled where located onto a zero of the test function,
     open where the bracket closed on a jump of it), failed points as red crosses on the
     bottom edge (the curve breaks there).  ``dof``: plot ``dof_<field>`` at that degree of
     freedom (default the system's observable, ``field`` = amplitude, rms or harmonic);
@@ -224,11 +224,11 @@ def plot_branches(branches, path=None, *, ax=None, dof=None, field="amplitude", 
 
 
 def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=None, unit=None):
-    """Stroboscopic bifurcation diagram from :func:`bifurcation_diagram`: the observable at
-    ``t = kT`` over the statistics window, for every initial state, against ``ω``; periodic
-    responses in colour by period multiple (a period-n orbit shows n points), the others
-    grey.  ``scale``, ``unit``: the values' display factor and unit (default metres as
-    mm)."""
+    """Stroboscopic bifurcation diagram from
+    [`bifurcation_diagram`][absorber_jax.bifurcation_diagram]: the observable at ``t = kT`` over the
+    statistics window, for every initial state, against ``ω``; periodic responses in colour by
+    period multiple (a period-n orbit shows n points), the others grey.  ``scale``, ``unit``: the
+    values' display factor and unit (default metres as mm)."""
     plt, ax, own = _axes(path, ax)
     colors = plt.get_cmap("tab10")
     sig = maps[0].signals

@@ -1,5 +1,5 @@
 """Scene files: a structure, its elements, the load and the sweep in one TOML or JSON file
-(issue 11, item 3), read by :func:`load_scene` and the ``absorber-jax scene`` command.
+(issue 11, item 3), read by ``load_scene`` and the ``absorber-jax scene`` command.
 
 The same tree in either format (TOML tables = JSON objects, arrays of tables = JSON arrays
 of objects).  Every value is checked, and every bad, missing or unknown key raises a
@@ -63,10 +63,10 @@ periods = 30                      # forcing periods simulated from rest
   ``mode_shapes`` (mass-normalised, ``n_dofs`` rows × ``n_modes`` columns), optional
   ``dof_names``.
 - any type: ``modal = {n_modes = ..., dofs = [...]}`` (both optional) reduces the structure
-  to its lowest ``n_modes`` modes observed at ``dofs`` (:meth:`LinearStructure.modal`).
+  to its lowest ``n_modes`` modes observed at ``dofs`` (``LinearStructure.modal``).
 
 **elements** (each needs ``type`` and ``dof``; ``name`` optional; numbers as in the
-constructors of :mod:`_systems.elements`):
+constructors of ``_systems.elements``):
 
 - ``tmd``: ``m`` > 0, ``k`` >= 0, ``c`` >= 0.
 - ``impact``: ``m`` > 0, ``gap`` >= 0, ``contact`` (a contact law).
@@ -211,12 +211,12 @@ def _keys(d, path, required=(), optional=()):
 
 
 class _Absent(Exception):
-    """Raised by :func:`_present` for an optional key that is missing."""
+    """Raised by ``_present`` for an optional key that is missing."""
 
 
 def _present(d, key, path, required, what=""):
     """``d[key]``; a missing required key is a field-named ValueError, a missing optional one
-    raises :class:`_Absent` (callers return their default)."""
+    raises ``_Absent`` (callers return their default)."""
     if key in d:
         return d[key]
     if required:
@@ -666,6 +666,6 @@ def scene_from_dict(data, *, source=""):
 
 def load_scene(path):
     """Read a scene file (``.toml`` or ``.json``, schema in the module docstring): returns
-    ``(system, settings)``, a :class:`StructuralSystem` and its :class:`SceneSettings`.
+    ``(system, settings)``, a ``StructuralSystem`` and its ``SceneSettings``.
     Raises ``ValueError`` naming the field for anything bad, missing or unknown."""
     return scene_from_dict(_read(path), source=os.fspath(path))

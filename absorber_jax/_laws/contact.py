@@ -74,7 +74,7 @@ class AbstractContactLaw(eqx.Module):
         """Power [W] dissipated at one wall: ``(force - elastic)·rate``.  With the conservative
         part a function of ``x`` alone, this closes the energy balance of the smoothed ODE
         exactly (up to the ``O(k eps²)`` difference between its potential and
-        :meth:`potential`)."""
+        ``potential``)."""
         f, delta, _ = self.wall_force(x, rate)
         return (f - self.elastic_force(delta)) * rate
 
@@ -98,7 +98,7 @@ class AbstractContactLaw(eqx.Module):
                 + self.potential(jnp.maximum(-u - gap, 0.0)))
 
     def clearance_dissipation(self, u, rate, gap):
-        """Power [W] dissipated in the two walls (:meth:`dissipated_power` of each)."""
+        """Power [W] dissipated in the two walls (``dissipated_power`` of each)."""
         return self.dissipated_power(u - gap, rate) + self.dissipated_power(-u - gap, -rate)
 
     def stiffness_rate(self, meff, scale):
@@ -124,7 +124,7 @@ class KelvinVoigt(AbstractContactLaw):
       pulls) or ``True`` (the paper's law as printed, which pulls at separation while
       ``c1 δ̇ < -k1 δ``; the paper's presets use it).
 
-    :meth:`from_restitution` gives the damping of a target coefficient of restitution.
+    ``from_restitution`` gives the damping of a target coefficient of restitution.
 
     Single impact of two free masses (``meff = mM/(m+M)``): contact time ``π/ω_d``,
     ``ω_d = sqrt(k1/meff - (c1/(2 meff))²)``, restitution ``exp(-ζπ/sqrt(1-ζ²))``.
@@ -183,7 +183,7 @@ class KelvinVoigt(AbstractContactLaw):
 
 def restitution_of_zeta(zeta, adhesive):
     """The coefficient of restitution of a single Kelvin–Voigt impact of damping ratio
-    ``zeta`` in ``[0, 1)`` (:meth:`KelvinVoigt.from_restitution`)."""
+    ``zeta`` in ``[0, 1)`` (``KelvinVoigt.from_restitution``)."""
     r = math.sqrt(1.0 - zeta**2)
     if adhesive:
         return math.exp(-zeta * math.pi / r)
@@ -229,9 +229,10 @@ class Hertz(_AbstractHertzian):
 
     **Arguments**
 
-    - ``stiffness``: $k_{Hz}$ [N/m^{3/2}] (Table 2: 3260); see :func:`hertz_stiffness`.
+    - ``stiffness``: $k_{Hz}$ [N/m^{3/2}] (Table 2: 3260); see
+      [`hertz_stiffness`][absorber_jax.hertz_stiffness].
     - ``damping``: $c_1$ [N s/m] (Table 2: 20).
-    - ``eps``, ``adhesive``: as in :class:`KelvinVoigt`.
+    - ``eps``, ``adhesive``: as in [`KelvinVoigt`][absorber_jax.KelvinVoigt].
 
     Undamped single impact: contact time ``2.9432 (5 meff/(4 kHz))^{2/5} v0^{-1/5}``
     (Johnson, *Contact Mechanics*, 1985, §11.4).
@@ -259,13 +260,14 @@ class HuntCrossley(_AbstractHertzian):
 
     The damping vanishes with the penetration, so the force starts and ends at zero.
     Hunt & Crossley, *J. Appl. Mech.* 42 (1975) 440; the paper's damping from restitution
-    (:func:`hunt_crossley_damping`) is Lankarani & Nikravesh's, *J. Mech. Des.* 112 (1990).
+    ([`hunt_crossley_damping`][absorber_jax.hunt_crossley_damping]) is Lankarani & Nikravesh's, *J.
+    Mech. Des.* 112 (1990).
 
     **Arguments**
 
     - ``stiffness``: $k_{Hz}$ [N/m^{3/2}] (Table 3: 3260).
     - ``damping``: $c_1$ [N s/m^{5/2}] (Table 3: 469.5).
-    - ``eps``, ``adhesive``: as in :class:`KelvinVoigt`.
+    - ``eps``, ``adhesive``: as in [`KelvinVoigt`][absorber_jax.KelvinVoigt].
 
     ```python
     law = HuntCrossley(stiffness=3260.0, damping=469.5)

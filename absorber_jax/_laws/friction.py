@@ -144,7 +144,7 @@ class Coulomb(AbstractFrictionLaw):
     - ``exact``: default ``True`` when no ``eps`` is given: the nonsmooth law itself, with
       stick and slip segments switched at events, exact to the integrator's tolerance and
       independent of the scale of the motion, with derivatives through the event times
-      (:mod:`_integration.stickslip`).
+      (``_integration.stickslip``).
 
     ```python
     law = Coulomb(mu=0.5)            # exact stick–slip
@@ -201,8 +201,9 @@ class Stribeck(AbstractFrictionLaw):
       0.6).
     - ``v_s``: Stribeck velocity [m/s] (Table 4 prints 1e4, which makes the exponential 1
       for any realistic speed, i.e. Coulomb with ``mu_s``; a physical value is ~1e-2).
-    - ``eps``, ``exact``: as for :class:`Coulomb`; the exact law (the default) sticks while
-      the holding force stays within ``μs N`` and slips at ``N(μc + (μs-μc)e^{-(Ẋ/vs)²})``.
+    - ``eps``, ``exact``: as for [`Coulomb`][absorber_jax.Coulomb]; the exact law (the default)
+      sticks while the holding force stays within ``μs N`` and slips at
+      ``N(μc + (μs-μc)e^{-(Ẋ/vs)²})``.
 
     ```python
     law = Stribeck(mu_c=0.5, mu_s=0.6, v_s=1e-2)
@@ -351,8 +352,8 @@ class LuGre(AbstractFrictionLaw):
     - ``sigma0``: bristle stiffness [N/m] (1e4); ``sigma1``: bristle damping [N s/m] (1e2);
       ``sigma2``: viscous (lubrication) damping [N s/m] (0).
     - ``eps``: ``0`` (default): ``|Ẋ|`` exactly, and ``|z| <= F_s/σ0`` holds; ``eps > 0``:
-      smoothed as ``Ẋ tanh(Ẋ/eps)`` [m/s] (as :class:`Dahl`; with σ0 = 1e8 and eps = 1e-4
-      the smoothed law sticks through a whole period holding 5 N against ``F_s`` = 1.2 N).
+      smoothed as ``Ẋ tanh(Ẋ/eps)`` [m/s] (as [`Dahl`][absorber_jax.Dahl]; with σ0 = 1e8 and eps =
+      1e-4 the smoothed law sticks through a whole period holding 5 N against ``F_s`` = 1.2 N).
 
     ```python
     law = LuGre(mu_c=0.5, mu_s=0.6, v_s=1e-2, sigma0=1e4, sigma1=1e2, sigma2=0.0)

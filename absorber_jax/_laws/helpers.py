@@ -1,15 +1,15 @@
 """The paper's contact helpers (section 2.2–2.3), with corrections.
 
-- :func:`hertz_stiffness`: ``kHz = (4/3) E* sqrt(R)`` from the materials.  The paper writes
+- ``hertz_stiffness``: ``kHz = (4/3) E* sqrt(R)`` from the materials.  The paper writes
   the contact radius ``a`` where the sphere radius ``R`` belongs (its ``a`` depends on the
   load, which would make the "stiffness" load-dependent); we use ``R``.
-- :func:`hunt_crossley_damping`: the paper's ``c1 = 3 kHz (1 - e²)/(4 v0)`` (Lankarani &
+- ``hunt_crossley_damping``: the paper's ``c1 = 3 kHz (1 - e²)/(4 v0)`` (Lankarani &
   Nikravesh 1990).  It is accurate for restitution near 1 only; see
-  :func:`hunt_crossley_restitution` and the README for the measured restitution it yields.
-- :func:`linear_contact_time`, :func:`hertz_contact_time`: the paper's ``T_Linear`` and
+  ``hunt_crossley_restitution`` and the README for the measured restitution it yields.
+- ``linear_contact_time``, ``hertz_contact_time``: the paper's ``T_Linear`` and
   ``T_Hertz`` (its ``K* = (m+M)/(mM)`` is ``1/meff``); both checked against simulated single
   impacts in the tests.
-- :func:`equivalent_hertz_stiffness`: the ``kHz`` whose contact time at impact speed ``v0``
+- ``equivalent_hertz_stiffness``: the ``kHz`` whose contact time at impact speed ``v0``
   equals the linear law's.
 """
 

@@ -17,7 +17,7 @@ def smooth_relu(x, eps):
 
 def smooth_gate(x, eps):
     r"""Heaviside step $H(x) \approx \mathrm{sigmoid}(x/\varepsilon)$, the derivative of
-    :func:`smooth_relu`."""
+    ``smooth_relu``."""
     return jax.nn.sigmoid(x / eps)
 
 
@@ -33,7 +33,7 @@ def smooth_abs(v, eps):
 
 
 def abs_or_smooth(v, eps):
-    r"""$|v|$ exactly where ``eps == 0``, else :func:`smooth_abs` (``eps`` may be traced: both
+    r"""$|v|$ exactly where ``eps == 0``, else ``smooth_abs`` (``eps`` may be traced: both
     branches are evaluated, the unused one on a safe divisor, so gradients stay finite)."""
     smooth = eps > 0
     return jnp.where(smooth, smooth_abs(v, jnp.where(smooth, eps, 1.0)), jnp.abs(v))

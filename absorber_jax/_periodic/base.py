@@ -1,5 +1,5 @@
-"""How a periodic orbit is found: the base class of :class:`Shooting` and
-:class:`Marching` (objects that carry their own options, passed as ``method=``)."""
+"""How a periodic orbit is found: the base class of ``Shooting`` and
+``Marching`` (objects that carry their own options, passed as ``method=``)."""
 
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ class AbstractSteadyMethod(eqx.Module):
 
     @abc.abstractmethod
     def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
-        """The :class:`SteadyState` from the *scaled* internal state ``x0`` (one orbit
-        solve, vmappable: nothing here retries or raises)."""
+        """The [`SteadyState`][absorber_jax.SteadyState] from the *scaled* internal state ``x0``
+        (one orbit solve, vmappable: nothing here retries or raises)."""
 
     @property
     @abc.abstractmethod
@@ -31,7 +31,7 @@ class AbstractSteadyMethod(eqx.Module):
     @property
     def chains(self) -> bool:
         """Whether sweeps hand each point the previous point's orbit and period-map
-        Jacobian (:meth:`solve_chained`) instead of solving the points independently
+        Jacobian (``solve_chained``) instead of solving the points independently
         (default: False)."""
         return False
 

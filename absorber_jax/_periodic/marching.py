@@ -26,8 +26,8 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
           give_up=None, with_floquet=True):
     """March from scaled state ``x0`` until the Poincaré samples repeat with period ``n``
     (or, with ``give_up``, until the response is seen not to settle within the budget:
-    :class:`Marching`).  The loop is not differentiated: the orbit's derivatives are the
-    implicit function theorem's at the marched fixed point (:func:`implicit_orbit`)."""
+    ``Marching``).  The loop is not differentiated: the orbit's derivatives are the
+    implicit function theorem's at the marched fixed point (``implicit_orbit``)."""
     dyn_in = (system, forcing)
     system, forcing, x0 = _no_gradient((system, forcing, x0))
     H = n_max + 2

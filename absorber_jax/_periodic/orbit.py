@@ -4,7 +4,7 @@ Floquet multipliers and the stability label.
 Amplitudes (over one full response period ``nT``, from uniform samples refined by parabolic
 interpolation at the extremes; ``SAMPLES_PER_PERIOD`` per forcing period for the largest
 period multiple allowed) of the system's observable (``x1`` for the two-mass systems, the
-chosen degree of freedom or weighted set of a :class:`StructuralSystem`): ``amplitude`` =
+chosen degree of freedom or weighted set of a ``StructuralSystem``): ``amplitude`` =
 half peak-to-peak; ``rms`` = RMS about zero; ``harmonic`` = magnitude of its component at the
 forcing frequency; ``dof_amplitude``, ``dof_rms``, ``dof_harmonic`` the same at each of the
 system's ``output_names``; ``absorber_amplitude`` and ``absorber_rms`` the same for the
@@ -45,7 +45,8 @@ class SteadyState(eqx.Module):
     ``multipliers``: Floquet multipliers of the period-``nT`` map; ``stable``: all
     ``|μ| <= 1 + 1e-6``, except, on an orbit where the absorber floats without touching the
     walls, the structural double multiplier 1 of its free position;
-    ``status``: :class:`Status`; ``iterations``: Newton steps (shooting) or periods marched.
+    ``status``: [`Status`][absorber_jax.Status]; ``iterations``: Newton steps (shooting) or periods
+    marched.
     """
 
     amplitude: jax.Array
@@ -79,7 +80,7 @@ class SteadyState(eqx.Module):
 
 
 class SteadyResults:
-    """What results holding a batched :class:`SteadyState` as ``steady`` share (sweeps,
+    """What results holding a batched ``SteadyState`` as ``steady`` share (sweeps,
     continuation branches): the orbit states, multipliers, success flags and the
     per-degree-of-freedom fields by name (``dof_names``)."""
 
@@ -103,7 +104,7 @@ class SteadyResults:
 
 
 def read_through(cls, names, where):
-    """Give ``cls`` a read-only property per :class:`SteadyState` field in ``names``."""
+    """Give ``cls`` a read-only property per ``SteadyState`` field in ``names``."""
     for name in names:
         setattr(cls, name, property(lambda self, n=name: getattr(self.steady, n),
                                     doc=f"``SteadyState.{name}`` per {where}."))
@@ -152,7 +153,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     """Amplitudes over one response period ``nT`` starting from scaled state ``x0``
     (``n`` may be traced; ``n_cap`` is its static upper bound), the integrator's status, the
     largest stroke per absorber, the scaled state at ``nT`` and the internal states sampled
-    (:func:`sample_orbit`)."""
+    (``sample_orbit``)."""
     s, ts, st, end = sample_orbit(system, forcing, x0, n, cfg, n_cap, with_end=True)
     phase = jnp.exp(-1j * forcing.omega * ts)
 
@@ -211,7 +212,7 @@ def _at_least(cfg, tol):
 
 def floquet_matrix(system, forcing, x0, n, cfg, n_cap=None, *, unroll=False):
     """``(M, multipliers)``: the monodromy matrix (scaled state) and its eigenvalues, which
-    :func:`floquet` reports.  Steps controlled on the tangents, tolerance no tighter than
+    ``floquet`` reports.  Steps controlled on the tangents, tolerance no tighter than
     ``FLOQUET_RTOL_SMALL`` for a small state; for a large one ``FLOQUET_RTOL_COARSE``, and
     ``FLOQUET_RTOL`` where a multiplier lies within ``FLOQUET_MARGIN`` of the unit circle
     (decided on the eigenvalues, which are returned rather than computed again).
@@ -295,7 +296,7 @@ def _implicit_orbit_jvp(primals, tangents, *, cfg, n_cap):
 
 def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
             n_cap=1, multipliers=None, tol=None, section=None):
-    """The :class:`SteadyState` of the scaled orbit state ``x`` (statistics, multipliers,
+    """The ``SteadyState`` of the scaled orbit state ``x`` (statistics, multipliers,
     stability); ``multipliers`` when the caller already has them (continuation: from the
     Jacobian of its last corrector step).  With ``tol`` (shooting), ``residual`` and
     ``status`` are not given but measured here: ``max |Φ_nT(x) - x|`` from the statistics'
@@ -303,9 +304,9 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
 
     With ``section`` (continuation; ``n`` static, ``n_cap = n``): ``x`` lies on the Poincaré
     section ``section`` samples after ``t = 0`` (``forcing`` is the
-    :class:`~absorber_jax._systems.forcing.PhasedHarmonic` of that section); the state reported is
+    ``PhasedHarmonic`` of that section); the state reported is
     the orbit's at ``t = 0`` (a sample of the statistics' integration), and the result is
-    ``(steady, Section)`` (:func:`section_of`)."""
+    ``(steady, Section)`` (``section_of``)."""
     scale = state_scale(system, forcing)
     stats, st2, stroke_max, end, samples = orbit_statistics(system, forcing, x, n, cfg, n_cap)
     if section is not None and samples.shape[0] != SAMPLES_PER_PERIOD * n:
@@ -345,7 +346,7 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
 
 class Section(eqx.Module):
     """Where an orbit sampled from a Poincaré section lies against its contact walls
-    (:func:`section_of`): ``clearance`` at the section, ``best_clearance`` at the best
+    (``section_of``): ``clearance`` at the section, ``best_clearance`` at the best
     sample and ``least_clearance`` at the worst (the least distance [m] to any wall,
     negative in contact, ``inf`` without walls), the ``best`` sample's index from ``t = 0``
     and its internal state, and the orbit's internal state at ``t = 0``."""
@@ -359,7 +360,7 @@ class Section(eqx.Module):
 
 
 def section_of(system, samples, section, at_zero):
-    """The :class:`Section` of an orbit's internal ``samples`` taken from the section
+    """The ``Section`` of an orbit's internal ``samples`` taken from the section
     ``section`` samples after ``t = 0``.
 
     Shooting from a section where a stiff contact is closed is badly conditioned: the state

@@ -26,7 +26,7 @@ from .orbit import _finish, floquet_matrix, monodromy
 
 def _keep_best(best, y, size, valid=True):
     """``best = (iterate, residual max-norm)`` with ``(y, size)`` in its place where
-    ``size`` is smaller and counts: finite, and not the exact zero that :func:`_residual`
+    ``size`` is smaller and counts: finite, and not the exact zero that ``_residual``
     gives for a failed integration (a true orbit's residual is never exactly zero, short of
     a rest state, where every iterate is one)."""
     better = valid & jnp.isfinite(size) & (size > 0) & (size < best[1])
@@ -45,7 +45,7 @@ class _KeepsBest:
     can land on a residual of 3e-6.  The last iterate's residual is then a draw from that
     noise, above or below the shooting tolerance by chance (the rounding of one solver or
     another decided it); the best one is not.  A converged solve ends on an iterate whose
-    residual is within ``atol`` (``0.1 tol`` in :func:`shoot`): the best one is at least
+    residual is within ``atol`` (``0.1 tol`` in ``shoot``): the best one is at least
     that good, so the orbit meets ``tol`` with the same margin, though it forgoes the last
     (unevaluated) Newton step's further gain on a smooth map."""
 
@@ -155,7 +155,7 @@ def _broyden(residual, x0, H0, args, tol, steps):
     ``H`` improved by Broyden's ("good") rank-one update after every step, until a step is
     within ``tol`` (max-norm).  Returns the iterate after that last step, or, when the
     budget ran out first (or the last residual came from a failed integration), the
-    iterate with the smallest residual evaluated (as :class:`_KeepsBest`: the period map is
+    iterate with the smallest residual evaluated (as ``_KeepsBest``: the period map is
     noisy at the integration tolerance); and the number of steps.  (The iterate after a
     step within ``tol`` is kept rather than the one it started from: its residual, up to
     ``|H^-1| tol``, may exceed the shooting tolerance that the one after meets.)  With the
@@ -202,15 +202,15 @@ def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=4
                 with_floquet=True):
     """Shooting from a given Jacobian of the period map (scaled): quasi-Newton steps
     ``x <- x - H r(x)`` from ``H = (J - I)^+`` (minimum-norm, as the SVD steps of
-    :func:`shoot`), Broyden-updated (:func:`_broyden`), until a step is within ``0.1 tol``.
-    Returns the :class:`SteadyState` and the Jacobian the next solve along a sweep may
+    ``shoot``), Broyden-updated (``_broyden``), until a step is within ``0.1 tol``.
+    Returns the ``SteadyState`` and the Jacobian the next solve along a sweep may
     reuse: the Floquet monodromy at the orbit when it was computed and the orbit converged,
     else the Jacobian given.
 
     A sweep hands each point its neighbours' orbit and monodromy (``Shooting.chains``;
     extrapolated from the last two): the monodromy at an orbit serves its Floquet
     multipliers *and* the next points' start, one
-    monodromy per point where :func:`shoot` with ``root="chord"`` computes two (at the guess,
+    monodromy per point where ``shoot`` with ``root="chord"`` computes two (at the guess,
     at the orbit)."""
     residual = _residual(n, cfg)
     x_guess = jax.lax.stop_gradient(x_guess)

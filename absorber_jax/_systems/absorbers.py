@@ -3,7 +3,7 @@
 Both systems share one vector field, composed as *linear primary structure + coupling*:
 the primary (mass, spring, dashpot to ground, forced) and an absorber mass joined to it by
 a coupling force.  The coupling is the contact law at the two walls of a clearance
-(:class:`ImpactAbsorber`) or a spring, dashpot and friction law (:class:`FrictionAbsorber`).
+(``ImpactAbsorber``) or a spring, dashpot and friction law (``FrictionAbsorber``).
 
 Internal state (what the integrator sees): ``[x1, v1, u, w, *z]`` with the absorber's motion
 *relative* to the primary, ``u = x2 - x1`` and ``w = v2 - v1`` (accurate near contact and
@@ -216,7 +216,8 @@ class ImpactAbsorber(AbstractAbsorberSystem):
       damping [N s/m] (0.1).
     - ``m``: absorber mass [kg] (0.4).
     - ``gap``: clearance ``d`` on each side [m] (the paper gives none; our default 1e-3).
-    - ``contact``: a :class:`KelvinVoigt`, :class:`Hertz` or :class:`HuntCrossley` law.
+    - ``contact``: a [`KelvinVoigt`][absorber_jax.KelvinVoigt], [`Hertz`][absorber_jax.Hertz] or
+      [`HuntCrossley`][absorber_jax.HuntCrossley] law.
 
     ```python
     sys = ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3,
@@ -316,8 +317,10 @@ class FrictionAbsorber(AbstractAbsorberSystem):
       (Tables 4–5: 1, 1e4, 0; ``c1`` default 0).
     - ``m2``, ``k2``, ``c2``: absorber mass, tie stiffness and damping (1, 1e4, 0);
       ``c2`` default 0 (keyword only, as ``c1``).
-    - ``normal_force``: ``N`` [N] (the paper gives none; see :mod:`absorber_jax.presets`).
-    - ``friction``: a :class:`Coulomb`, :class:`Stribeck`, :class:`Dahl` or :class:`LuGre` law.
+    - ``normal_force``: ``N`` [N] (the paper gives none; see
+      [`absorber_jax.presets`][absorber_jax.presets]).
+    - ``friction``: a [`Coulomb`][absorber_jax.Coulomb], [`Stribeck`][absorber_jax.Stribeck],
+      [`Dahl`][absorber_jax.Dahl] or [`LuGre`][absorber_jax.LuGre] law.
 
     ```python
     sys = FrictionAbsorber(m1=1.0, k1=1e4, c1=0.0, m2=1.0, k2=1e4, c2=0.0,

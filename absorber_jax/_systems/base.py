@@ -2,8 +2,8 @@
 sweeps, design, CLI) talk to.
 
 Two families implement it: the paper's one-mass-one-absorber systems
-(:class:`ImpactAbsorber`, :class:`FrictionAbsorber`, in ``_system``) and the general
-:class:`StructuralSystem` (a :class:`LinearStructure` carrying any number of elements, in
+(``ImpactAbsorber``, ``FrictionAbsorber``, in ``_system``) and the general
+``StructuralSystem`` (a ``LinearStructure`` carrying any number of elements, in
 ``_structural``).  Each declares:
 
 - its state: ``num_states``, ``state_names`` (the named slices of the flat *public* state),
@@ -85,8 +85,9 @@ class AbstractSystem(eqx.Module):
         return jnp.zeros(())
 
     def trajectory_fields(self, ts, s, forcing):
-        """Extra per-instant fields of a simulated :class:`Trajectory` (``coupling_force``
-        and, where they apply, friction diagnostics) from internal states ``s`` at ``ts``."""
+        """Extra per-instant fields of a simulated [`Trajectory`][absorber_jax.Trajectory]
+        (``coupling_force`` and, where they apply, friction diagnostics) from internal states ``s``
+        at ``ts``."""
         return {"coupling_force": jnp.zeros((ts.shape[0], 0))}
 
     # -- exact nonsmooth (hybrid) dynamics: see absorber_jax._integration.stickslip --------------
@@ -149,4 +150,4 @@ class AbstractSystem(eqx.Module):
 
     @abc.abstractmethod
     def parameter_names(self) -> list:
-        """The names :func:`replace_params`, sweeps and ``tune`` accept."""
+        """The names [`replace_params`][absorber_jax.replace_params], sweeps and ``tune`` accept."""

@@ -35,7 +35,8 @@ def _internal(q, qd):
 
 def linear_guess(system, forcing):
     """A starting orbit for shooting from the linear limits of the scene (internal state):
-    the system's own :meth:`AbstractAbsorberSystem.linear_guess`."""
+    the system's own
+    [`AbstractAbsorberSystem.linear_guess`][absorber_jax.AbstractAbsorberSystem.linear_guess]."""
     return system.linear_guess(forcing)
 
 

@@ -50,11 +50,12 @@ SETTINGS = ("eps", "adhesive", "exact")
 
 
 def parameter_names(system):
-    """The design parameters of ``system`` by name, as :func:`replace_params`,
-    :func:`get_param`, sweeps (``params=``) and :func:`tune` accept them: the paper's symbols
-    (``k1``, ``c1``, ``m``, ``gap``, ``N``, ...) and their field names, element parameters
-    as ``<element>.<field>``.  Model settings (``eps``, ``adhesive``, ``exact``) are not
-    listed, though :func:`replace_params` accepts them too."""
+    """The design parameters of ``system`` by name, as
+    [`replace_params`][absorber_jax.replace_params], [`get_param`][absorber_jax.get_param], sweeps
+    (``params=``) and [`tune`][absorber_jax.tune] accept them: the paper's symbols (``k1``, ``c1``,
+    ``m``, ``gap``, ``N``, ...) and their field names, element parameters as ``<element>.<field>``.
+    Model settings (``eps``, ``adhesive``, ``exact``) are not listed, though
+    [`replace_params`][absorber_jax.replace_params] accepts them too."""
     return [k for k in system.parameter_names() if k.rsplit(".", 1)[-1] not in SETTINGS]
 
 

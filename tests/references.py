@@ -98,7 +98,7 @@ def friction_stick_slip(m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega, t
 
 
 class StickSlip:
-    """The event-switched stick–slip equations (see :func:`friction_stick_slip`), run from
+    """The event-switched stick–slip equations (see ``friction_stick_slip``), run from
     any state and mode: ``run`` returns the state and mode at ``t1``."""
 
     def __init__(self, m1, k1, c1, m2, k2, c2, mu_c, mu_s, v_s, N, F0, omega, rtol=RTOL,

@@ -1,4 +1,5 @@
-"""Single impact of two free masses against the closed forms of DESIGN.md §4, and the
+"""Single impact of two free masses against the closed-form contact times and restitutions
+(Mechanics page of the documentation, "Contact times, restitution and the helpers"), and the
 paper's helper constants checked against simulation."""
 
 import jax.numpy as jnp

@@ -1,5 +1,5 @@
-r"""Friction laws of the friction absorber, paper section 3 (equations corrected in
-DESIGN.md §1.2).
+r"""Friction laws of the friction absorber, paper section 3 (the laws, their units and the
+paper's Tables 4–5 are on the Mechanics page of the documentation).
 
 A law gives the friction force ``Fnl`` [N] that drags the absorber along with the primary,
 as a function of the relative sliding velocity ``v = Ẋ = ẋ1 - ẋ2`` [m/s], the normal force

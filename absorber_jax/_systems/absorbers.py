@@ -202,7 +202,8 @@ class AbstractAbsorberSystem(AbstractSystem):
 
 
 class ImpactAbsorber(AbstractAbsorberSystem):
-    r"""Impact absorber (paper section 2, DESIGN.md §1.1).
+    r"""Impact absorber (paper section 2; the equations, laws and the paper's Tables 1–3 are on
+    the Mechanics page of the documentation).
 
     A primary ``M, k, c`` forced by ``F(t)`` carries an absorber mass ``m`` that moves freely
     in a cavity with clearance ``gap`` on each side.  With ``y = x2 - x1``,
@@ -303,7 +304,9 @@ class ImpactAbsorber(AbstractAbsorberSystem):
 
 
 class FrictionAbsorber(AbstractAbsorberSystem):
-    r"""Friction absorber (paper section 3, equations as corrected in DESIGN.md §1.2).
+    r"""Friction absorber (paper section 3; the equations below are written out from the two
+    masses' Newton equations, the printed ones being garbled: see the Mechanics page of the
+    documentation).
 
     A primary ``m1, k1, c1`` forced by ``F(t)`` carries an absorber ``m2`` tied to it by
     ``k2, c2`` and sliding on it under the normal force ``N``.  With ``X = x1 - x2``:

@@ -27,8 +27,8 @@ def use_cpu_cores(n=None):
     its devices then); it raises ``RuntimeError`` after.  Returns the number of CPU devices.
 
     Measured on 2 cores (``scripts/benchmark_structure.py``: the 20-storey building with two
-    friction dampers, 256 frequencies): 15.9 s on one device, 8.6 s on two (8.1 s and
-    4.3 s with the later changes to large states' integrations and Floquet monodromies)."""
+    friction dampers, 256 frequencies): 8.1 s on one device, 4.3 s on two (the Benchmarks
+    page of the documentation)."""
     if n is None:
         n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
@@ -139,10 +139,10 @@ def lanes_on_devices(one, shared, *lanes, ndev):
     parts, each device runs its own loops to their own ends), compiled and traced once for
     all the devices, where ``by_parts`` compiles a program per device, each traced
     again under the interpreter lock (the hard Kelvin–Voigt scene's batched continuation
-    corrector, 16 lanes on two CPU devices: 10.9 s -> 8.1 s to the first result, 1.04 ->
-    0.84 s a call after).  ``shared`` (a pytree, its arrays replicated) is the same for all
-    lanes; the number of lanes must be a multiple of ``ndev`` (see ``device_parts``).
-    Call it under ``one_blas_thread``."""
+    corrector, 16 lanes on two CPU devices: 8.1 s to the first result against 10.9 s with a
+    program per device, 0.84 s a call after against 1.04 s).  ``shared`` (a pytree, its arrays
+    replicated) is the same for all lanes; the number of lanes must be a multiple of ``ndev``
+    (see ``device_parts``). Call it under ``one_blas_thread``."""
     def f(shared, *lanes):
         return jax.vmap(lambda *lane: one(shared, *lane))(*lanes)
 

@@ -61,8 +61,9 @@ class _Config(eqx.Module):
 # Below it, diffrax ForwardMode (state-controlled steps, ~4x cheaper) is right; above it
 # the stiff direction has decayed in the state, so the state's error estimate lets the steps
 # reach the edge of the explicit stability region, where the O(1) tangent seeded in that
-# direction grows: the issue's stick–slip case (smoothed Coulomb eps = 1e-4, 70 rad/s, λT =
-# 2e4) had |μ| = 1e66 from shooting and 2.8e9 from marching on a stable orbit (|μ| = 0.86).
+# direction grows: with state-controlled steps, the stick–slip scene of tests/test_stickslip.py
+# (smoothed Coulomb eps = 1e-4, 70 rad/s, λT = 2e4) gives |μ| = 1e66 from shooting and 2.8e9
+# from marching on a stable orbit (|μ| = 0.86).
 TANGENT_CONTROL_STEPS_PER_PERIOD = 2.0e3
 
 
@@ -173,9 +174,9 @@ def _flow_jvp(primals, tangents, *, cfg):
     # (they move with the forcing period) add the flow's rate there.  They are not input
     # directions of the Jacobian: sampling an orbit at 256 times whose tangent is the
     # period's would carry 256 more tangents through the solve (measured: the 22-point grid
-    # pass of exact_peak on a TMD, 1.23 -> 0.15 s).  Hybrid (exact stick–slip) systems: every
-    # input through the event times and the segments' steps, the times included (the rate at
-    # a save time is the mode's there).
+    # pass of exact_peak on a TMD takes 0.15 s this way, 1.23 s with them).  Hybrid (exact
+    # stick–slip) systems: every input through the event times and the segments' steps, the times
+    # included (the rate at a save time is the mode's there).
     hybrid = dyn[0].hybrid
     k = 4 if hybrid else 2
     if any(t is not None for t in jax.tree_util.tree_leaves(tangents[:k], is_leaf=is_none)):
@@ -222,8 +223,9 @@ def _flow_jvp(primals, tangents, *, cfg):
 # the matrix sensitivity equations (one solve, all directions integrated together) rather than
 # from diffrax ForwardMode (the solve vmapped over the tangent directions): measured on a
 # 64-lane vmapped monodromy of the 44-state 20-DOF building of
-# scripts/benchmark_structure.py, 7.5 s -> 4.4 s (same steps, same numbers); on the 12-state
-# 3-storey building with three TMDs of tests/test_structure.py 0.151 -> 0.112 s; on the
+# scripts/benchmark_structure.py, 4.4 s against 7.5 s (same steps, same numbers); on the
+# 12-state 3-storey building with three TMDs of tests/test_structure.py 0.112 s against
+# 0.151 s; on the
 # 5-state Table 1 impact absorber ForwardMode is a little faster (256 lanes: 56 vs 69 ms).
 SENSITIVITY_STATES = 12
 
@@ -292,11 +294,11 @@ def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
     Derivatives of the equations, not of the solver's internals: none passes through an
     implicit solver's stage Newton solve (whose forward-mode derivative raises inside
     lineax when a trial stage diverges, as on LuGre with sigma0 >= 1e6).  One solve, not
-    one per direction (``jax.jacfwd`` of a per-direction augmented solve, which integrated
-    the state again with every tangent, as before 2026-11-24): the Floquet multipliers of the
-    256-point Table 1 sweep took 1.24 s that way, 0.43 s this way.  The steps are
-    controlled as they were direction by direction: on the state only (implicit solvers),
-    or (``tangent_control``) on the state together with the worst single direction.  The
+    one per direction (``jax.jacfwd`` of a per-direction augmented solve integrates the
+    state again with every tangent): the Floquet multipliers of the 256-point Table 1 sweep
+    take 0.43 s this way against 1.24 s direction by direction.  The steps are controlled as
+    direction by direction would control them: on the state only (implicit solvers), or
+    (``tangent_control``) on the state together with the worst single direction.  The
     state returned is this solve's (with tangent control its steps are finer than a
     state-only solve's: the two differ at the integration tolerance, far below shooting's).
     Returns ``(jac, (ys, status))``, ``jac`` of shape ``ys.shape + (m,)``."""

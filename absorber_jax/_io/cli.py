@@ -738,8 +738,9 @@ def build_parser():
     t.set_defaults(func=cmd_tune)
     sc = _command(sub, "scene", "a scene file: sweep, CSV, JSON summary and PNG per degree "
                   "of freedom",
-                  "Load a scene file (TOML or JSON: structure, elements, load, sweep; schema "
-                  "in absorber_jax/_io/scene.py), sweep it, and write "
+                  "Load a scene file (TOML or JSON: structure, elements, load, sweep; keys "
+                  "and units on the 'Scene files and the CLI' page of the documentation), "
+                  "sweep it, and write "
                   "frequency_response.csv (SI units, nan at failed points), a PNG of every "
                   "degree of freedom's amplitude and summary.json (peaks, failures with what "
                   "to try); --simulate adds trajectory.csv and trajectory.png.")

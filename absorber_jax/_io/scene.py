@@ -1,5 +1,6 @@
-"""Scene files: a structure, its elements, the load and the sweep in one TOML or JSON file
-(issue 11, item 3), read by ``load_scene`` and the ``absorber-jax scene`` command.
+"""Scene files: a structure, its elements, the load and the sweep in one TOML or JSON file,
+read by ``load_scene`` and the ``absorber-jax scene`` command (user documentation: the Scene
+files and the CLI page, docs/guide/scene-files.md).
 
 The same tree in either format (TOML tables = JSON objects, arrays of tables = JSON arrays
 of objects).  Every value is checked, and every bad, missing or unknown key raises a
@@ -665,7 +666,8 @@ def scene_from_dict(data, *, source=""):
 
 
 def load_scene(path):
-    """Read a scene file (``.toml`` or ``.json``, schema in the module docstring): returns
+    """Read a scene file (``.toml`` or ``.json``, keys in the module docstring and on the Scene
+    files and the CLI page of the documentation): returns
     ``(system, settings)``, a ``StructuralSystem`` and its ``SceneSettings``.
     Raises ``ValueError`` naming the field for anything bad, missing or unknown."""
     return scene_from_dict(_read(path), source=os.fspath(path))

@@ -275,8 +275,8 @@ class Shooting(AbstractSteadyMethod):
     def _first_steps(self, budget):
         # a chord step is one integration without tangents (~1/25 of a Newton step on the
         # 44-state building of scripts/benchmark_structure.py) and converges linearly: its
-        # first pass takes 4x the Newton budget before a lane counts as a straggler (8x was
-        # slower: 19.7 -> 40.8 s on 64 points of that building, the lanes resumed with a
+        # first pass takes 4x the Newton budget before a lane counts as a straggler (8x is
+        # slower: 40.8 s against 19.7 s on 64 points of that building, the lanes resumed with a
         # fresh Jacobian converge in fewer steps than those left on the first one)
         return budget * (4 if self.root == "chord" else 1)
 

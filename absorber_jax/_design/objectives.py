@@ -58,7 +58,9 @@ class AbstractObjective(eqx.Module):
 
 class ExactPeak(AbstractObjective):
     """The band's largest amplitude, located exactly (the zero of ``dA/dω`` bracketed on the
-    grid and refined by the Illinois method), minimised as a minimax problem.
+    grid and refined by the Illinois method: M. Dowell, P. Jarratt, *BIT* 11 (1971) 168) and
+    differentiated by the envelope theorem (P. Milgrom, I. Segal, *Econometrica* 70 (2002)
+    583), minimised as a minimax problem.
 
     - ``n_freq``: grid points that bracket the peaks (enough to separate them; the grid also
       follows the design's lightly damped modes when ``modes``).

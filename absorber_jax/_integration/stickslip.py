@@ -20,9 +20,11 @@ order (the saltation of the flow):
   the next segment starts at the fixed time ``t̄`` from ``x_new - f_new (t* - t̄)``.
 
 Together these give ``dx+ = P (dx- + f_old dt*) - f_new dt*``: the saltation matrix of the
-switch, composed automatically by forward-mode AD (shooting's Jacobian, the Floquet
-multipliers, design gradients).  The same shift moves save times and the final time when
-they depend on parameters (the forcing period): diffrax itself never sees a time tangent.
+switch (R. I. Leine, H. Nijmeijer, *Dynamics and Bifurcations of Non-Smooth Mechanical
+Systems*, Springer, 2004), composed automatically by forward-mode AD (shooting's Jacobian,
+the Floquet multipliers, design gradients).  The same shift moves save times and the final
+time when they depend on parameters (the forcing period): diffrax itself never sees a time
+tangent.
 """
 
 from __future__ import annotations

@@ -101,7 +101,8 @@ BRISTLE_SLIDING_SPEED = 5e-3
 
 # Dahl and LuGre use |v| itself by default (eps = 0).  Their vector field is then continuous
 # (a kink at v = 0, no jump), so no event is needed: the flow is C^1 across transversal
-# crossings of v = 0 (the saltation matrix of a continuous field is the identity), and
+# crossings of v = 0 (the saltation matrix of a continuous field is the identity: Leine &
+# Nijmeijer, Dynamics and Bifurcations of Non-Smooth Mechanical Systems, 2004), and
 # forward-mode tangents give the monodromy matrix.  The smoothed |v| ~ v tanh(v/eps) turns the
 # bristle into a plain linear spring once its velocity falls below eps, so the bound
 # |sigma0 z| <= max g no longer holds; stiff bristles stick at ~omega mu_s N / sigma0, and at
@@ -144,7 +145,7 @@ class Coulomb(AbstractFrictionLaw):
     - ``exact``: default ``True`` when no ``eps`` is given: the nonsmooth law itself, with
       stick and slip segments switched at events, exact to the integrator's tolerance and
       independent of the scale of the motion, with derivatives through the event times
-      (``_integration.stickslip``).
+      (the saltation matrices of the switches).
 
     ```python
     law = Coulomb(mu=0.5)            # exact stick–slip

@@ -4,9 +4,9 @@ paper omits.
 **Assumptions** (the paper gives no value):
 
 - impact scenes: clearance ``gap = 1e-3`` m on each side;
-- friction scenes: ``normal_force = FRICTION_NORMAL_FORCE`` N and a harmonic force of
-  ``FRICTION_OMEGA`` rad/s whose amplitude ramps linearly from 0 to ``FRICTION_F0`` N over
-  ``FRICTION_RAMP`` s.  With the absorber stuck the two masses move as one 2 kg body
+- friction scenes: ``normal_force = 2`` N and a harmonic force of 50 rad/s whose amplitude
+  ramps linearly from 0 to 40 N over 20 s (``FRICTION_NORMAL_FORCE``, ``FRICTION_OMEGA``,
+  ``FRICTION_F0``, ``FRICTION_RAMP``).  With the absorber stuck the two masses move as one 2 kg body
   (``k1 = 1e4``), so the friction needed to hold it is ``m2 ω² |x1|`` with
   ``|x1| = F0/(k1 - 2 m ω²)``; sticking breaks at ``F0* = μ N (k1 - 2ω²)/ω²``, which is
   2 N for the defaults (N = 2 N, ω = 50 rad/s), so the ramp to 40 N passes 20 times the

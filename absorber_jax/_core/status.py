@@ -14,6 +14,29 @@ import numpy as np
 
 
 class Status(enum.IntEnum):
+    """The result codes in the ``status`` field of every result (a trajectory, a steady
+    state, each point of a sweep or a branch, each lane of an attractor map).  Under ``vmap``
+    nothing can raise, so each lane carries its code; a failed point never spoils the others,
+    and its measured fields are NaN.
+
+    | code | name | meaning |
+    |---|---|---|
+    | 0 | ``SUCCESS`` | success |
+    | 1 | ``MAX_STEPS`` | the integrator exhausted ``max_steps`` |
+    | 2 | ``SOLVER_FAILED`` | the integrator failed otherwise (step size collapse, NaN state) |
+    | 3 | ``NO_CONVERGENCE`` | Newton or marching did not converge within its budget |
+    | 4 | ``NOT_PERIODIC`` | no period-``n`` orbit with ``n <= n_max`` (quasi-periodic, chaotic) |
+    | 5 | ``NONFINITE`` | the result held NaN or inf |
+
+    [`describe`][absorber_jax.describe] gives the meaning of a code and what to try.
+
+    ```python
+    ss = aj.steady_state(system, forcing)
+    if ss.status != aj.Status.SUCCESS:
+        print(aj.describe(ss.status))
+    ```
+    """
+
     SUCCESS = 0
     MAX_STEPS = 1  # the integrator exhausted max_steps
     SOLVER_FAILED = 2  # the integrator failed otherwise (step size collapse, nonfinite state)

@@ -39,10 +39,26 @@ SAMPLES_PER_PERIOD = 256
 
 
 class SteadyState(eqx.Module):
-    """A periodic response (see the module docstring for the definitions).
+    """A periodic response: an orbit of period ``nT`` (``T = 2π/ω`` the forcing period,
+    ``n`` = ``period_multiple``), its statistics and its stability.
+
+    The statistics are those of the system's observable (``x1`` for the two-mass systems,
+    the chosen degree of freedom or weighted set of a ``StructuralSystem``) over one full
+    response period ``nT``, from 256 uniform samples per forcing period refined by parabolic
+    interpolation at the extremes, in the observable's unit (m): ``amplitude`` = half
+    peak-to-peak; ``rms`` = RMS about zero; ``harmonic`` = magnitude of the component at the
+    forcing frequency; ``dof_amplitude``, ``dof_rms``, ``dof_harmonic``: the same at each of
+    the system's ``output_names``; ``absorber_amplitude``, ``absorber_rms``: the same for the
+    absorber's motion relative to its host (``x2 - x1``; the largest over several
+    absorbers); ``impacts``: contact closures per forcing period (0 without contacts),
+    resolved for contacts lasting more than a few samples (``T/64`` at period 1).
 
     ``state``: public state (``system.state_names``) on the orbit at ``t = 0 mod nT``;
-    ``multipliers``: Floquet multipliers of the period-``nT`` map; ``stable``: all
+    ``multipliers``: Floquet multipliers of the period-``nT`` map, the eigenvalues of its
+    monodromy matrix (Floquet theory: A. H. Nayfeh, B. Balachandran, *Applied Nonlinear
+    Dynamics*, Wiley, 1995; with the exact stick–slip friction laws the monodromy matrix
+    carries the saltation matrices of the switches: R. I. Leine, H. Nijmeijer, *Dynamics and
+    Bifurcations of Non-Smooth Mechanical Systems*, Springer, 2004); ``stable``: all
     ``|μ| <= 1 + 1e-6``, except, on an orbit where the absorber floats without touching the
     walls, the structural double multiplier 1 of its free position;
     ``status``: [`Status`][absorber_jax.Status]; ``iterations``: Newton steps (shooting) or periods
@@ -196,7 +212,7 @@ FLOQUET_MARGIN = 1e-2
 # Measured on the 256 orbits of the Table 1 sweep (scripts/benchmark_sweep.py) against
 # tangent-controlled rtol 1e-12: every |multiplier| within 5.8e-8 at 1e-8 (1.9e-8 at 1e-9),
 # for 0.19 s instead of 0.35 s (the label was ~27 % of that sweep); ForwardMode through
-# state-controlled steps was 6.9e-5 off at 1e-9 (6.8e-7 at 1e-10).
+# state-controlled steps is 6.9e-5 off at 1e-9 (6.8e-7 at 1e-10).
 FLOQUET_RTOL_SMALL = 1e-8
 
 

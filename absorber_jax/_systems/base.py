@@ -1,24 +1,4 @@
-"""The abstract system: the only members the generic layers (simulate, steady states,
-sweeps, design, CLI) talk to.
-
-Two families implement it: the paper's one-mass-one-absorber systems
-(``ImpactAbsorber``, ``FrictionAbsorber``, in ``_system``) and the general
-``StructuralSystem`` (a ``LinearStructure`` carrying any number of elements, in
-``_structural``).  Each declares:
-
-- its state: ``num_states``, ``state_names`` (the named slices of the flat *public* state),
-  ``to_internal``/``to_public`` (the integrator's state and the user's), ``rest_state``,
-  ``state_scale`` (the per-component scale the integrator and Newton work in);
-- its dynamics: ``vector_field``, ``mechanical_energy``, ``power``, the solver hints
-  ``stiffness_rate``/``oscillation_rate`` and, for exact stick–slip, the hybrid members;
-- what is measured on it: ``output_names``/``outputs`` (displacements at named degrees of
-  freedom [m or rad]), ``observable`` (the scalar signal that ``amplitude``, ``rms``,
-  ``harmonic`` and the design objectives use), ``strokes`` (each absorber's motion relative
-  to its host), ``floating_pairs`` (structural Floquet multipliers 1 of absorbers that never
-  touch anything), ``penetrations`` (each contact wall's signed penetration, for counting
-  impacts);
-- its named parameters: ``parameter_path`` and ``parameter_names``.
-"""
+"""The abstract system (``AbstractSystem``): the only members the generic layers talk to."""
 
 from __future__ import annotations
 
@@ -29,7 +9,30 @@ import jax.numpy as jnp
 
 
 class AbstractSystem(eqx.Module):
-    """A forced mechanical system (module docstring)."""
+    """A forced mechanical system: the interface that ``simulate``, the steady-state solvers,
+    the sweeps, continuation, design and the CLI use, and nothing else.
+
+    Two families implement it: the paper's one-mass-one-absorber systems
+    ([`ImpactAbsorber`][absorber_jax.ImpactAbsorber],
+    [`FrictionAbsorber`][absorber_jax.FrictionAbsorber]) and the general
+    [`StructuralSystem`][absorber_jax.StructuralSystem] (a
+    [`LinearStructure`][absorber_jax.LinearStructure] carrying any number of elements).  Each
+    declares:
+
+    - its state: ``num_states``, ``state_names`` (the named slices of the flat *public*
+      state), ``to_internal``/``to_public`` (the integrator's state and the user's),
+      ``rest_state``, ``state_scale`` (the per-component scale the integrator and Newton
+      work in);
+    - its dynamics: ``vector_field``, ``mechanical_energy``, ``power``, the solver hints
+      ``stiffness_rate``/``oscillation_rate`` and, for exact stick–slip, the hybrid members;
+    - what is measured on it: ``output_names``/``outputs`` (displacements at named degrees
+      of freedom [m or rad]), ``observable`` (the scalar signal that ``amplitude``, ``rms``,
+      ``harmonic`` and the design objectives use), ``strokes`` (each absorber's motion
+      relative to its host), ``floating_pairs`` (structural Floquet multipliers 1 of
+      absorbers that never touch anything), ``penetrations`` (each contact wall's signed
+      penetration, for counting impacts);
+    - its named parameters: ``parameter_path`` and ``parameter_names``.
+    """
 
     # -- state ------------------------------------------------------------------------
     @property

@@ -41,6 +41,19 @@ def _getter(path):
 
 
 def get_param(system, name):
+    """The value of the parameter ``name`` of ``system`` (a JAX scalar, or array for a matrix
+    field), in SI units.  ``name`` is one of
+    [`parameter_names`][absorber_jax.parameter_names]: the paper's symbols (``"k"`` [N/m],
+    ``"gap"`` [m], ``"k1"`` the contact stiffness, ``"N"`` the normal force [N], ...), a
+    dotted field path (``"contact.stiffness"``) or, on a structural system,
+    ``"<element>.<field>"`` (``"tmd1.k"``); an unknown name raises ``ValueError`` listing
+    the known ones.
+
+    ```python
+    system, _ = aj.presets.impact("kelvin_voigt")
+    aj.get_param(system, "k1")        # Array(400.), the contact stiffness [N/m] of Table 1
+    ```
+    """
     return _getter(resolve(system, name))(system)
 
 

@@ -2,7 +2,7 @@
 
 Table 1 impact scene, 64 frequencies over 25–45 rad/s, objective = smooth peak, gradient with
 respect to k1, c1, m (three parameters, forward mode through the implicit orbit solve), side
-by side in one run.  Issue 4's target: at most 2x.
+by side in one run.  The target: the value and gradient cost at most 2x the sweep.
 
     python scripts/benchmark_grad.py [--repeats 3]
 """

@@ -1,4 +1,4 @@
-"""Benchmark (issue 12, item 4): hard contacts, where real impact dampers work.
+"""Benchmark: hard contacts, where real impact dampers work.
 
 Scenes: ``ImpactAbsorber(M=1, k=1e3, c=0.5, m=0.2, gap=2e-3)`` with
 ``KelvinVoigt(stiffness=2e4, damping=2, adhesive=True)`` or

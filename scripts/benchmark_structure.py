@@ -1,4 +1,4 @@
-"""Benchmark (issue 11): a 20-degree-of-freedom modal structure carrying two nonlinear
+"""Benchmark: a 20-degree-of-freedom modal structure carrying two nonlinear
 absorbers, a steady-state sweep of 256 frequencies, absorber_jax against a scipy loop.
 
 Scene: a 20-storey shear building (1 t floors, 2 MN/m storeys, 2 % modal damping) as its
@@ -17,8 +17,8 @@ mode 2.  Band 0.7–1.4 ω1.  State: 40 modal + 4 damper states.
   on ``--scipy-points`` frequencies, its mean time per frequency extrapolated to 256.
 
 Prints times, the speed ratio, the Newton iteration counts and the largest relative
-difference of the roof amplitude on the common frequencies; appends to BENCHMARKS.md with
-``--out``.
+difference of the roof amplitude on the common frequencies; appends them to FILE with
+``--out`` (docs/benchmark_structure.txt holds the runs).
 
     python scripts/benchmark_structure.py [--points 256] [--scipy-points 4] [--root chord]
                                           [--devices N] [--out FILE]

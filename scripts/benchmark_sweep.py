@@ -8,8 +8,8 @@ steady state), 256 frequencies over the scene's band:
   compile time is reported separately;
 - scipy: the loop a researcher writes, ``solve_ivp`` (DOP853) of the same smoothed ODE,
   marching one forcing period at a time until the Poincaré samples change by less than
-  ``TOL`` (relative) over 3 consecutive periods, at most ``MAX_PERIODS``; and the loop
-  issue 12 names (RK45 in 20-period chunks until the amplitude changes by < 1e-4,
+  ``TOL`` (relative) over 3 consecutive periods, at most ``MAX_PERIODS``; and a simpler
+  loop (RK45 in 20-period chunks until the amplitude changes by < 1e-4,
   ``scipy_issue_loop``) on the same frequencies.  Marching every
   frequency takes hours in Python, so scipy runs on ``--scipy-points`` evenly spaced
   frequencies and its mean time per frequency is extrapolated to 256 (said in the output).
@@ -17,7 +17,7 @@ steady state), 256 frequencies over the scene's band:
 Prints times, the speed ratio and the largest relative amplitude difference on the common
 frequencies, and writes BENCHMARKS.md (``--out``).
 
-Third scene (issue 10): the stick–slip friction absorber ``m1 = 1, k1 = 1e4, c1 = 2, m2 = 0.1,
+Third scene: the stick–slip friction absorber ``m1 = 1, k1 = 1e4, c1 = 2, m2 = 0.1,
 k2 = 1e3, N = 4 N, Coulomb μ = 0.5``, F0 = 20 N, 256 frequencies over 70–130 rad/s, with the
 library's defaults (the exact, event-driven Coulomb law).  The scipy loop is the
 event-switched stick–slip integration (``tests/references.py``, DOP853 at rtol 1e-8)
@@ -28,9 +28,9 @@ change by < 1e-12) gives the error of both.
                                       [--scenes impact,lugre,stickslip] [--chunk-size 64]
 
 absorber_jax runs at ``frequency_response``'s default ``chunk_size`` (64 points per
-compiled vmapped call; until 2026-11-24 this script passed all 256 in one call, which made
-the floating absorber's 106 one-Newton-step lanes wait in lockstep for the impacting lanes'
-5: Table 1 0.80 s at 256 per call, 0.60 s at 64, 0.72 s at 128 and at 32, same machine).
+compiled vmapped call: with all 256 in one call the floating absorber's 106 one-Newton-step
+lanes wait in lockstep for the impacting lanes' 5; Table 1 takes 0.60 s at 64 per call,
+0.72 s at 128 and at 32, 0.80 s at 256, same machine).
 """
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def scipy_march(system, F0, w):
 
 
 def scipy_issue_loop(system, F0, w, chunk=20, tol=TOL, max_periods=MAX_PERIODS):
-    """The competitor issue 12 names: ``solve_ivp`` (RK45, rtol 1e-8) in chunks of
+    """The simpler competitor loop: ``solve_ivp`` (RK45, rtol 1e-8) in chunks of
     ``chunk`` periods until the amplitude (half peak-to-peak of x1 over the chunk's last
     period) changes by < ``tol`` (relative) from one chunk to the next.  Returns the
     amplitude and the periods marched."""

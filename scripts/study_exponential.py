@@ -1,16 +1,16 @@
-"""Study (issue 11, the 5 s target): does propagating the modal block exactly reduce the steps
-per period on the 20-DOF building of ``scripts/benchmark_structure.py``?
+"""Study: does propagating the modal block exactly reduce the steps per period on the 20-DOF
+building of ``scripts/benchmark_structure.py``?
 
 Adaptive Tsit5 at rtol 1e-7 takes ~600 steps per period there, and the high modes set that
 count: 604 with 20 modes, 291 with 5; with the error norm restricted to modes 1-5 and the
-dampers, ~300 steps and the low modes as accurate (measured in session n).  An exponential
+dampers, ~300 steps and the low modes as accurate.  An exponential
 integrator (``y' = L y + N(t, y)``, ``L`` the modal block, propagated exactly) would not
 resolve the high modes' own oscillation.  This study compares, at *fixed* steps over one
 period from three orbits of the sweep, ETDRK4 (Cox & Matthews 2002, 4 evaluations of ``N``
 per step, the phi-functions of each 2 x 2 modal block by the augmented-matrix exponential)
 with fixed-step Tsit5 and Dopri5, errors against Dopri8 at rtol 1e-12 (scaled max-norm).
 
-Measured (session n; orbits at 0.865 / 0.975 / 1.139 ω1):
+Measured (orbits at 0.865 / 0.975 / 1.139 ω1):
 
     steps   ETDRK4                Tsit5                 Dopri5
     150     2.4e-1 3.9e-1 1.3e-1  1.2e+0 3.6e-1 2.8e-1  1.2e+0 2.9e-1 2.1e-1

@@ -1,9 +1,9 @@
-"""Study (issue 11, speed): how accurate and how cheap is a *structured* monodromy of a modal
-structure with nonlinear elements, against the library's forward-mode one?
+"""Study: how accurate and how cheap is a *structured* monodromy of a modal structure with
+nonlinear elements, against the library's forward-mode one?
 
 The library's Floquet monodromy of the 44-state building of ``benchmark_structure.py``
 integrates the 44 × 44 sensitivity matrix with Tsit5, steps controlled on the tangents
-(``_flow._sensitivity_jacobian``): ~7 s per 64 vmapped orbits, 50× a plain period
+(``_integration.flow._sensitivity_jacobian``): ~7 s per 64 vmapped orbits, 50× a plain period
 integration, and it dominates the sweep.  Its cost is Tsit5's stage arithmetic on the
 1980-dimensional augmented state (a trivial tangent rate costs 3.9 of its 5.1 s).
 
@@ -25,7 +25,7 @@ rate of ``Y`` keeps rank 12: one 24 × 24 solve per step (``scheme="gauss"``).
 Prints, for five orbits of the benchmark sweep, the largest error of the six largest
 |multipliers| and of the matrix against a tight reference (forward mode, steps controlled on
 the tangents, rtol 1e-9), for the library's Floquet monodromy too, and the time of 64
-vmapped monodromies.  Measured 2026-11-25 (this 2-core machine):
+vmapped monodromies.  Measured on a 2-core machine:
 
 =====================  ==============  ================  ===================
 monodromy              |mu| error      matrix error      64 orbits
@@ -37,10 +37,10 @@ Richardson sub 2 + 4   2e-8 .. 2e-5    1e-5 .. 7e-5      ~5.8 s
 gauss, sub 1           2e-7 .. 7e-5    2e-4 .. 9e-4      1.97 s
 =====================  ==============  ================  ===================
 
-(* state-controlled / tangent-controlled steps.  Later the same day the library's
-sensitivity integrations of large states run one lane at a time under vmap
-(``_flow.lane_by_lane``): 1.85 s per 64 monodromies at the linear guesses instead of 4.31 s;
-the structured schemes above were timed vmapped, in lockstep.)  The structured schemes are
+(* state-controlled / tangent-controlled steps, the library's sensitivity integrations vmapped
+in lockstep as the structured schemes are.  The library runs large states' sensitivity
+integrations one lane at a time under vmap (``_integration.flow.lane_by_lane``): 1.85 s per 64
+monodromies at the linear guesses against 4.31 s in lockstep.)  The structured schemes are
 3-5x cheaper but none reaches the library's accuracy at the same cost: their error stops falling at
 ~1e-5 on the orbits with stick–slip transitions (omega[20], [32], [40]), where the tangent's
 rate changes within one of the primal's steps; they need steps controlled on the tangent

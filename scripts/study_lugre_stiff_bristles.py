@@ -1,6 +1,6 @@
-"""Stiff bristles: LuGre with sigma0 = 1e8 N/m (the extreme case of tests/test_extreme.py,
-issue 10 item 5: steady state and multipliers at the defaults in under 2 minutes, checked
-against marching).
+"""Stiff bristles: LuGre with sigma0 = 1e8 N/m (the extreme case of tests/test_extreme.py:
+steady state and multipliers at the defaults in under 2 minutes, checked against
+marching).
 
 Scene: FrictionAbsorber(m1=1, k1=1e4, c1=2, m2=1, k2=1e4, c2=0, N=2 N),
 LuGre(mu_c=0.5, mu_s=0.6, v_s=1e-2, sigma0=1e8, sigma1=1e2), F0 = 10 N, omega = 50 rad/s.

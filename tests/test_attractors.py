@@ -1,4 +1,4 @@
-"""Attractor maps (issue 12): many initial states marched at once, the coexisting responses
+"""Attractor maps: many initial states marched at once, the coexisting responses
 with their shares and statistics, non-periodic responses flagged and measured; against
 event-exact and exact piecewise-linear references."""
 
@@ -134,8 +134,8 @@ def test_impacts_of_a_hard_contact_are_counted_against_an_event_exact_reference(
     """A hard Kelvin–Voigt contact (1e6 N/m, contact time ~3 ms against a 157 ms period) at
     40 rad/s, where no periodic orbit is stable: each lane's impacts over a window of 2
     periods equal the wall hits of an event-exact march from the same state (the response is
-    chaotic: the smoothed and the exact contact drift apart after ~2 periods; sampled at the
-    plain 64 per period, the count over 40 periods was 30 % low)."""
+    chaotic: the smoothed and the exact contact drift apart after ~2 periods; sampled at a
+    plain 64 per period, the count over 40 periods would be 30 % low)."""
     system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3,
                                contact=aj.KelvinVoigt(stiffness=1e6, damping=20.0, adhesive=True))
     w = 40.0

@@ -1,4 +1,4 @@
-"""Continuation of periodic orbits (issue 12): branches through folds, bifurcations detected
+"""Continuation of periodic orbits: branches through folds, bifurcations detected
 and located, branch switching at a period doubling, against independent references: a
 closed-form linear FRF, the jump frequencies of slow stepped marching sweeps written with
 exact piecewise-linear flows (reference_jumps.py), and the exact continuation of NLvib's
@@ -272,14 +272,14 @@ def test_a_section_moved_off_time_zero_reports_the_same_orbit():
 
 
 def test_hard_contact_branch_takes_its_section_where_the_absorber_flies_free():
-    """The hard Kelvin-Voigt impact absorber (issue 12's scene) near 28.4 rad/s: its
-    period-1 orbit is in contact at t = 0, where the state moves with the impact's timing
-    and Newton's basin shrinks (with the section kept at t = 0 the same call's corrector
-    takes 5 iterations a point past 28.42 rad/s, the arclength step cannot grow, and the
-    up half-branch ends its 40 points at 28.49 rad/s).  The section moves to where the
-    absorber flies farthest from the walls: 2-3 iterations a point, the half-branch passes
-    28.6 rad/s (to the fold at 28.68) within its 40 points, every point converged, and the
-    states it reports (the orbits' at t = 0, see
+    """The hard Kelvin-Voigt impact absorber (scripts/benchmark_hard_contacts.py) near
+    28.4 rad/s: its period-1 orbit is in contact at t = 0, where the state moves with the
+    impact's timing and Newton's basin shrinks (with the section kept at t = 0 the same call's
+    corrector takes 5 iterations a point past 28.42 rad/s, the arclength step cannot grow, and
+    the up half-branch ends its 40 points at 28.49 rad/s).  The section moves to where the
+    absorber flies farthest from the walls: 2-3 iterations a point, the half-branch passes 28.6
+    rad/s (to the fold at 28.68) within its 40 points, every point converged, and the states it
+    reports (the orbits' at t = 0, see
     test_a_section_moved_off_time_zero_reports_the_same_orbit) are in contact at some."""
     import jax.numpy as jnp
 

@@ -12,7 +12,7 @@ import pytest
 import absorber_jax as aj
 
 
-def _stick_slip_scene():  # the 70 rad/s case: exact Coulomb, sticks every cycle
+def _stick_slip_scene():  # the 70 rad/s stick–slip case: exact Coulomb, sticks every cycle
     system = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=0.1, k2=1e3, c2=0.0,
                                  normal_force=4.0, friction=aj.Coulomb(mu=0.5))
     return system, aj.Harmonic(amplitude=20.0, omega=70.0), lambda s: s.normal_force

@@ -1,4 +1,4 @@
-"""Scene files (issue 11, item 3): the TOML/JSON loader against the physics it describes
+"""Scene files: the TOML/JSON loader against the physics it describes
 (a closed-form receptance), the two formats against each other, the ``absorber-jax scene``
 command's outputs, and field-named errors for bad files.
 

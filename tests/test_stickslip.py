@@ -12,7 +12,7 @@ import scipy.linalg as sl
 import absorber_jax as aj
 from absorber_jax._periodic.steady import make_config, period_map, state_scale
 
-# the scene: a 0.1 kg absorber on k2 = 1e3, stick–slip at 70 rad/s under 20 N
+# the stick–slip scene: a 0.1 kg absorber on k2 = 1e3, stick–slip at 70 rad/s under 20 N
 BASE = dict(m1=1.0, k1=1e4, c1=2.0, m2=0.1, k2=1e3, c2=0.0)
 COULOMB = dict(mu=0.5)
 STRIBECK = dict(mu_c=0.4, mu_s=0.5, v_s=0.05)
@@ -70,8 +70,8 @@ def test_smoothed_laws_converge_to_exact_mode_at_a_fitted_rate():
 
 
 def test_70_rad_s_case_converges_stable_with_quadratic_newton():
-    # the case: Tsit5 shooting on the smoothed law diverged (|μ| 1e66), marching
-    # called the orbit unstable; Kvaerno5 found 4.3366 mm, |μ|max = 0.86
+    # Tsit5 shooting on the smoothed law with state-controlled steps diverges (|μ| 1e66) and
+    # marching calls the orbit unstable; Kvaerno5 finds 4.3366 mm, |μ|max = 0.86
     ss = aj.steady_state(scene(), FORCING)
     assert int(ss.status) == 0
     assert bool(ss.stable)
@@ -206,9 +206,9 @@ def test_failed_shooting_is_retried_by_marching_then_polished():
 
 
 def test_smoothed_law_with_explicit_solver_gets_the_monodromy_right():
-    # the case with the tanh-smoothed law (eps = 1e-4 m/s): the automatic choice is
-    # Tsit5; with steps controlled on the state only, its monodromy was |μ| = 1e66
-    # (shooting diverged) and 2.8e9 (marching called a stable orbit unstable)
+    # the 70 rad/s case with the tanh-smoothed law (eps = 1e-4 m/s): the automatic choice is
+    # Tsit5; with steps controlled on the state only, its monodromy is |μ| = 1e66
+    # (shooting diverges) and 2.8e9 (marching calls a stable orbit unstable)
     system = scene(law=aj.Coulomb(mu=0.5, eps=1e-4))
     assert aj.choose_solver(system, FORCING) == "tsit5"
     exact = aj.steady_state(scene(), FORCING)

@@ -1,4 +1,4 @@
-"""The general system (issue 11): a linear structure carrying elements, through simulate,
+"""The general system: a linear structure carrying elements, through simulate,
 steady states, sweeps and design, against independent references (closed-form receptances,
 the event-exact piecewise-linear solution of NLvib's example 03 in reference_nlvib03.py, the
 two-mass systems of the paper, energy balance, central differences)."""
@@ -96,8 +96,8 @@ def test_chained_chord_sweep_lands_on_the_exact_orbits_with_their_multipliers():
 def test_two_mass_systems_are_special_cases():
     """ImpactAbsorber / FrictionAbsorber = a one-DOF structure + ImpactDamper /
     FrictionDamper: the same state scales, vector fields, orbits and amplitudes (1e-10).
-    The friction case is the issue-10 stick–slip scene with the exact (event-driven) Coulomb
-    law: on a structure one exact friction damper is integrated by modes too."""
+    The friction case is the stick–slip scene of test_stickslip.py with the exact (event-driven)
+    Coulomb law: on a structure one exact friction damper is integrated by modes too."""
     kv = aj.KelvinVoigt(stiffness=400.0, damping=20.0, adhesive=True)
     imp = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.1, m=0.4, gap=1e-3, contact=kv)
     law = aj.Coulomb(mu=0.5)
@@ -207,7 +207,7 @@ def _assert_multipliers(got, exact):
 
 
 def test_large_state_monodromy_is_refined_only_near_the_unit_circle():
-    """A large state's Floquet monodromy (_orbit.floquet_matrix) comes at
+    """A large state's Floquet monodromy (_periodic.orbit.floquet_matrix) comes at
     FLOQUET_RTOL_COARSE where every multiplier lies well inside the unit circle, and at
     FLOQUET_RTOL where one lies within FLOQUET_MARGIN of it (the stability label depends on
     it there): the 3-storey building with three TMDs as given (|mu| <= 0.74 at 24 rad/s),

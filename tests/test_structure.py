@@ -1,4 +1,4 @@
-"""Linear structures (issue 11, first part): matrix and modal models, tuned mass dampers, the
+"""Linear structures: matrix and modal models, tuned mass dampers, the
 shear building and the cantilever beam, against closed forms written here independently."""
 
 import jax

@@ -45,10 +45,10 @@ class _Config(eqx.Module):
     tangent_control: bool = eqx.field(static=True, default=False)
     # a large state's sensitivities integrated with unrolled stages (_integration.unrolled):
     # ~30 % faster run, ~2x the compilation; for the integrations a sweep repeats at every
-    # point (Floquet monodromies, see _orbit.floquet_matrix)
+    # point (Floquet monodromies, see _periodic.orbit.floquet_matrix)
     unroll_tangents: bool = eqx.field(static=True, default=False)
     # rtol and atol multiplied by these (floats, or traced scalars: one compiled
-    # integration run at two tolerances, see _orbit.floquet_matrix)
+    # integration run at two tolerances, see _periodic.orbit.floquet_matrix)
     tol_factors: tuple = (1.0, 1.0)
 
     def over_periods(self, n: int) -> _Config:
@@ -233,7 +233,7 @@ SENSITIVITY_STATES = 12
 def large_state(system):
     """Whether ``system`` has a large state (>= ``SENSITIVITY_STATES``): derivatives by
     sensitivity equations, integrated lane by lane under vmap (``lane_by_lane``),
-    Floquet monodromies coarse first (``_orbit.floquet_matrix``), chained sweep lanes one
+    Floquet monodromies coarse first (``_periodic.orbit.floquet_matrix``), chained sweep lanes one
     at a time, a smooth system's plain integrations with unrolled stages
     (``_integrate``)."""
     return system.num_states >= SENSITIVITY_STATES
@@ -329,7 +329,7 @@ def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
     if cfg.unroll_tangents:
         # integrated alone (lane by lane), a large state's 44 x 44 sensitivities spend a
         # third of each step in diffrax's stage loop: unrolled stages (_integration.unrolled;
-        # _orbit.floquet_matrix asks for them only for large states)
+        # _periodic.orbit.floquet_matrix asks for them only for large states)
         cfg = dataclasses.replace(cfg, solver=unrolled(cfg.solver))
     (ys, dys), status = _diffeqsolve(augmented, (x0, D0), 0.0, t1, ts, cfg, norm=norm)
     dys = jnp.swapaxes(dys, -1, -2)                                   # (..., n, m)

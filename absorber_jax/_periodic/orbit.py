@@ -84,6 +84,7 @@ class SteadyState(eqx.Module):
 
     @property
     def ok(self):
+        """Whether the solve succeeded (``status == Status.SUCCESS``), per orbit."""
         return self.status == Status.SUCCESS
 
     def to_xarray(self, system=None):
@@ -110,6 +111,7 @@ class SteadyResults:
 
     @property
     def ok(self):
+        """Whether each point succeeded (``status == Status.SUCCESS``)."""
         return self.status == Status.SUCCESS
 
     def dof(self, name, field="amplitude"):

@@ -49,6 +49,7 @@ from ._periodic.sweep import FrequencyResponse, frequency_response  # noqa: E402
 from ._systems.absorbers import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 from ._systems.base import AbstractSystem  # noqa: E402
 from ._systems.elements import (  # noqa: E402
+    AbstractAbsorber,
     AbstractElement,
     Contact,
     FrictionContact,
@@ -56,10 +57,17 @@ from ._systems.elements import (  # noqa: E402
     ImpactDamper,
     TunedMassDamper,
 )
-from ._systems.forcing import AbstractForcing, Harmonic, RampedHarmonic  # noqa: E402
+from ._systems.forcing import (  # noqa: E402
+    AbstractForcing,
+    AbstractPeriodicForcing,
+    Harmonic,
+    MultiHarmonic,
+    PeriodicForcing,
+    RampedHarmonic,
+)
 from ._systems.linear import linear_guess  # noqa: E402
 from ._systems.params import get_param, parameter_names, replace_params  # noqa: E402
-from ._systems.structural import StructuralSystem  # noqa: E402
+from ._systems.structural import BaseExcitation, StructuralSystem  # noqa: E402
 from ._systems.structure import (  # noqa: E402
     LinearStructure,
     cantilever_beam,
@@ -91,4 +99,6 @@ __all__ = [
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "objectives",
     "presets", "simulate",
     "use_cpu_cores",
+    "AbstractPeriodicForcing", "MultiHarmonic", "PeriodicForcing", "BaseExcitation",
+    "AbstractAbsorber",
 ]

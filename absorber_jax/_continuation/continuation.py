@@ -73,7 +73,7 @@ from .._periodic.orbit import SAMPLES_PER_PERIOD, SteadyResults, SteadyState, _f
 from .._periodic.shooting import Shooting
 from .._periodic.steady import check_system_and_forcing, steady_state
 from .._systems.base import AbstractSystem
-from .._systems.forcing import Harmonic, PhasedHarmonic
+from .._systems.forcing import AbstractPeriodicForcing
 from .._systems.params import replace_params, resolve
 
 FORCING_PARAMETERS = ("omega", "amplitude")
@@ -257,7 +257,7 @@ class _Problem(eqx.Module):
     ``SAMPLES_PER_PERIOD`` a forcing period) after ``t = 0``."""
 
     system: AbstractSystem
-    forcing: Harmonic
+    forcing: AbstractPeriodicForcing
     s0: jax.Array
     pscale: jax.Array
     cfg: _Config
@@ -273,7 +273,7 @@ class _Problem(eqx.Module):
         """(system, forcing seen from the section) at the scaled parameter ``p``."""
         sysp, forcp = self.at(p)
         phase = 2 * jnp.pi * self.section / SAMPLES_PER_PERIOD
-        return sysp, PhasedHarmonic(amplitude=forcp.amplitude, omega=forcp.omega, phase=phase)
+        return sysp, forcp.at_phase(phase)
 
     def _in_flow(self, z):
         """(system, forcing from the section) at ``z``'s parameter, the flow's state scale
@@ -299,9 +299,9 @@ class _Problem(eqx.Module):
 
 def _set_value(system, forcing, name, value):
     if name == "omega":
-        return system, eqx.tree_at(lambda f: f.omega, forcing, value)
+        return system, forcing.with_omega(value)
     if name == "amplitude":
-        return system, eqx.tree_at(lambda f: f.amplitude, forcing, value)
+        return system, forcing.with_amplitude(value)
     return replace_params(system, {name: value}, check=False), forcing
 
 
@@ -583,9 +583,9 @@ class _Driver:
         return best, evals, converged
 
 
-def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "omega", *,
-                 bounds, method: PseudoArclength | None = None, n: int = 1,
-                 direction: str = "up", start=None, guess=None, solver=None, rtol=1e-9,
+def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
+                 parameter: str = "omega", *, bounds, method: PseudoArclength | None = None,
+                 n: int = 1, direction: str = "up", start=None, guess=None, solver=None, rtol=1e-9,
                  atol=1e-9, max_steps=200_000, locate=True, progress=False) -> Branch:
     """Follow a branch of period-``n`` orbits of ``system`` under ``forcing`` in
     ``parameter`` by pseudo-arclength continuation (see the module docstring), through
@@ -593,8 +593,11 @@ def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "om
 
     **Arguments**
 
-    - ``parameter``: ``"omega"`` (the forcing frequency [rad/s]), ``"amplitude"`` (F0 [N]) or
-      any name of ``system.parameter_names()`` (``k1``, ``gap``, ``N``, ``tmd1.k`` ...).
+    - ``forcing``: any periodic forcing (``Harmonic``, ``MultiHarmonic``,
+      ``PeriodicForcing`` ...).
+    - ``parameter``: ``"omega"`` (the forcing's fundamental [rad/s], through
+      ``forcing.with_omega``), ``"amplitude"`` (F0 [N], through ``forcing.with_amplitude``)
+      or any name of ``system.parameter_names()`` (``k1``, ``gap``, ``N``, ``tmd1.k`` ...).
     - ``bounds``: ``(lo, hi)``: the branch ends where the parameter leaves them (the last
       point lands on the bound); the start value must lie inside.
     - ``method``: a :class:`PseudoArclength` with the step and corrector options.
@@ -672,7 +675,8 @@ def continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "om
     return _branch(points, bifs, termination, drv, value0, system)
 
 
-def band_continuation(system: AbstractSystem, forcing: Harmonic, parameter: str = "omega", *,
+def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
+                      parameter: str = "omega", *,
                       bounds, starts=8, method: PseudoArclength | None = None, n: int = 1,
                       fill: int = 2, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000,
                       locate=True, progress=False) -> tuple:
@@ -883,7 +887,7 @@ def _check_common(system, forcing, parameter, bounds, method, n, where):
 def _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps):
     # the integrator is chosen at the lowest frequency of the bounds in an omega continuation
     if parameter == "omega":
-        forcing = Harmonic(amplitude=forcing.amplitude, omega=lo)
+        forcing = forcing.with_omega(lo)
     return make_config(system, forcing, solver, rtol, atol, max_steps)
 
 

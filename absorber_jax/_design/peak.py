@@ -37,7 +37,7 @@ from .._core.status import Status
 from .._integration.flow import state_scale
 from .._periodic.orbit import sample_orbit
 from .._periodic.steady import solve_point
-from .._systems.forcing import Harmonic
+from .._systems.forcing import Harmonic, at_frequency, sweep_shape
 from .base import Reparam, check_design, shooting_for_design
 
 # kinds of a peak slot
@@ -99,7 +99,7 @@ def refined_amplitude(system, forcing, x, cfg, n=1):
 def amplitude_at(system, omega, amplitude, guess, cfg, method):
     """Refined amplitude at ``omega`` on the orbit found from ``guess`` (internal state; NaN:
     the method's start), the internal orbit state and the status."""
-    forcing = Harmonic(amplitude=amplitude, omega=omega)
+    forcing = at_frequency(amplitude, omega)
     res = solve_point(system, forcing, method, cfg, guess=guess, with_floquet=False)
     x_int = system.to_internal(res.state)
     a, st = refined_amplitude(system, forcing, x_int / state_scale(system, forcing), cfg)
@@ -377,8 +377,9 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
                rtol=1e-10, atol=1e-10, newton_steps=40, solver=None, xtol=1e-10,
                max_iter=40, modes=True) -> BandPeak:
     """The largest steady-state amplitude of ``system.observable`` over ``band = (lo, hi)``
-    [rad/s] under a harmonic force of ``amplitude`` F0 [N], located exactly (module
-    docstring), with its gradient in the named ``params`` (envelope theorem).
+    [rad/s] under a harmonic force of ``amplitude`` F0 [N] (or under a periodic forcing
+    given as ``amplitude``, at its ``with_omega(ω)``), located exactly (module docstring),
+    with its gradient in the named ``params`` (envelope theorem).
 
     ``n_freq``: points of the coarse grid that brackets the peaks (enough to separate them);
     ``peaks``: slots located (2 for a tuned mass damper's two peaks); ``modes``: add grid
@@ -400,7 +401,8 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     from .._systems.params import get_param
 
     require_x64("exact_peak")
-    check_system_and_forcing(system, Harmonic(amplitude=1.0, omega=1.0), "exact_peak")
+    amplitude = sweep_shape(amplitude, "exact_peak")
+    check_system_and_forcing(system, at_frequency(amplitude, 1.0), "exact_peak")
     lo, hi = band
     check_scalar("exact_peak", "band[0]", lo, lo=0.0, lo_open=True)
     check_scalar("exact_peak", "band[1]", hi, lo=float(lo), lo_open=True)
@@ -414,11 +416,10 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     if names:
         names, _ = check_design(system, names, omegas, "peak")
     p0 = jnp.array([float(get_param(system, k)) for k in names])
-    cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
-                      rtol, atol)
+    cfg = make_config(system, at_frequency(amplitude, float(omegas[0])), solver, rtol, atol)
     guesses = jnp.full((n_freq, system.num_states), jnp.nan, dtype=jnp.float64)
     out = peak_core(system, names, Reparam.plain(len(names)), p0, jnp.asarray(omegas),
-                    jnp.asarray(amplitude, float), guesses, cfg, float(tol), int(newton_steps),
+                    amplitude, guesses, cfg, float(tol), int(newton_steps),
                     int(peaks), float(xtol), int(max_iter), bool(modes))
     out = {k: np.asarray(v) for k, v in out.items()}
     return BandPeak(omegas=out["omegas"], amplitudes=out["amplitudes"], kinds=out["kinds"],

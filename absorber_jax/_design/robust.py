@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.status import Status
-from .._systems.forcing import Harmonic
+from .._systems.forcing import at_frequency, sweep_shape
 from .base import Reparam
 from .peak import evaluate_points, exact_peak
 
@@ -69,7 +69,7 @@ def stable_responses(system, band, amplitude, *, probes, samples, spread=3.0, se
 
     found = []
     for w in np.linspace(float(band[0]), float(band[1]), probes):
-        amap = attractors(system, Harmonic(amplitude=amplitude, omega=float(w)),
+        amap = attractors(system, at_frequency(amplitude, float(w)),
                           samples=samples, spread=spread, seed=seed, max_periods=max_periods,
                           solver=solver, rtol=rtol, atol=atol)
         for att in amap.attractors:
@@ -111,14 +111,14 @@ def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probe
             value, omega, source = float(att.amplitude), w, "coexisting"
             grad = {k: float("nan") for k in names}
             if att.period_multiple == 1:
-                forcing = Harmonic(amplitude=amplitude, omega=w)
+                forcing = at_frequency(amplitude, w)
                 cfg = make_config(system, forcing, solver, rtol, atol)
                 p = jnp.array([float(get_param(system, k)) for k in names])
                 guess = system.to_internal(jnp.asarray(att.state))[None]
                 # in batches of the exact peak's slots: its compiled program, reused
                 a, g, _, st = evaluate_points(
                     system, names, Reparam.plain(len(names)), p, [w],
-                    jnp.asarray(amplitude, dtype=float), guess, cfg, float(tol),
+                    sweep_shape(amplitude, "robust_peak"), guess, cfg, float(tol),
                     int(newton_steps), peaks)
                 if int(st[0]) == Status.SUCCESS:
                     value = float(a[0])

@@ -293,7 +293,8 @@ def simulate(
     **Arguments**
 
     - ``system``: an :class:`ImpactAbsorber` or :class:`FrictionAbsorber`.
-    - ``forcing``: a :class:`Harmonic` or :class:`RampedHarmonic`.
+    - ``forcing``: any ``AbstractForcing`` (``Harmonic``, ``MultiHarmonic``,
+      ``PeriodicForcing``, ``RampedHarmonic``, or one of your own).
     - ``t1``: final time [s]; ``t0``: initial time (default 0).
     - ``ts``: save times (sorted, within ``[t0, t1]``); default a uniform grid with
       ``saves_per_period`` points per forcing period (at least 1001).
@@ -321,6 +322,11 @@ def simulate(
             f"{type(system).__name__}"
         )
     if not isinstance(forcing, AbstractForcing):
+        if callable(forcing):
+            raise ValueError("forcing must be a forcing object, got a plain function: wrap a "
+                             "periodic one as PeriodicForcing(function, omega) with its "
+                             "fundamental angular frequency omega [rad/s] (or subclass "
+                             "AbstractForcing for a signal that is not periodic)")
         raise ValueError(f"forcing must be a forcing (e.g. Harmonic), got {type(forcing).__name__}")
     check_scalar("simulate", "t0", t0)
     check_scalar("simulate", "t1", t1, lo=float(t0), lo_open=True)

@@ -47,7 +47,7 @@ from .._core.status import Status
 from .._core.units import Signals, signals_of
 from .._integration.flow import flow_along, make_config, state_scale
 from .._systems.base import AbstractSystem
-from .._systems.forcing import Harmonic
+from .._systems.forcing import AbstractPeriodicForcing
 from .marching import Marching
 from .orbit import SteadyState, _parabolic_peak, closures
 from .steady import check_system_and_forcing, solve_point
@@ -252,7 +252,7 @@ def _sample_states(system, forcing, samples, spread, seed):
     return np.stack([np.asarray(system.to_public(jnp.asarray(x))) for x in x_int])
 
 
-def attractors(system: AbstractSystem, forcing: Harmonic, *, initial_states=None,
+def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, initial_states=None,
                samples=32, spread=3.0, seed=0, n_max=8, max_periods=2000, tol=1e-6,
                give_up=None, window=40, rel_tol=2e-3, solver=None, rtol=1e-9, atol=1e-9,
                max_steps=200_000, resolution=None) -> AttractorMap:
@@ -372,6 +372,7 @@ def bifurcation_diagram(system, forcing, omegas, *, progress=False, **options):
     :func:`absorber_jax.plot_bifurcation_diagram`."""
     from tqdm.auto import tqdm
 
+    check_system_and_forcing(system, forcing, "bifurcation_diagram")
     om = np.asarray(omegas, dtype=float)
     if om.ndim != 1 or om.size < 1 or not np.all(np.isfinite(om)) or np.any(om <= 0):
         raise ValueError(f"omegas must be a 1-D array of frequencies > 0 [rad/s], got {omegas!r}")
@@ -383,6 +384,5 @@ def bifurcation_diagram(system, forcing, omegas, *, progress=False, **options):
         options["resolution"] = samples_per_period(system, float(om.min()))
     out = []
     for w in tqdm(om, desc="attractors", disable=not progress):
-        out.append(attractors(system, Harmonic(amplitude=forcing.amplitude, omega=float(w)),
-                              **options))
+        out.append(attractors(system, forcing.with_omega(float(w)), **options))
     return out

@@ -41,7 +41,7 @@ from .._core.checks import check_state, is_traced, require_x64
 from .._core.status import Status
 from .._integration.flow import _Config, _flow, make_config, period_map, state_scale  # noqa: F401
 from .._systems.base import AbstractSystem
-from .._systems.forcing import Harmonic
+from .._systems.forcing import check_periodic
 from .base import AbstractSteadyMethod
 from .marching import Marching
 from .orbit import SAMPLES_PER_PERIOD, SteadyState, orbit_statistics  # noqa: F401
@@ -115,9 +115,7 @@ def check_system_and_forcing(system, forcing, where="steady_state"):
     if not isinstance(system, AbstractSystem):
         raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
                          f"StructuralSystem, got {type(system).__name__}")
-    if not isinstance(forcing, Harmonic):
-        raise ValueError(f"{where} needs a periodic forcing: forcing must be a Harmonic, "
-                         f"got {type(forcing).__name__}")
+    check_periodic(forcing, where)
 
 
 # Newton steps after which a single solve that will be retried gives up if its iterate is
@@ -156,7 +154,9 @@ def steady_state(system, forcing, *, method="shooting", guess=None, solver=None,
                  atol=1e-9, max_steps=200_000, floquet=True, n=None, tol=None, n_max=None,
                  newton_steps=None, max_periods=None, chunk=None, root=None,
                  retry=None) -> SteadyState:
-    """The periodic response of ``system`` under a :class:`Harmonic` ``forcing``.
+    """The periodic response of ``system`` under a periodic ``forcing`` (any
+    ``AbstractPeriodicForcing``: ``Harmonic``, ``MultiHarmonic``,
+    ``PeriodicForcing`` ...; its period is the fundamental ``2π/forcing.omega``).
 
     **Arguments**
 

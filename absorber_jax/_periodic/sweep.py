@@ -12,14 +12,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core import tables
-from .._core.checks import check_scalar, check_time_grid, require_x64
+from .._core.checks import check_time_grid, require_x64
 from .._core.devices import by_parts, put
 from .._core.status import Status, nan_where_failed
 from .._core.units import Signals, signals_of
 from .._integration.flow import lane_by_lane, large_state, state_scale
 from .._integration.simulate import choose_solver
 from .._systems.base import AbstractSystem
-from .._systems.forcing import Harmonic
+from .._systems.forcing import at_frequency, sweep_shape
 from .._systems.params import replace_params, resolve
 from .orbit import SteadyResults, read_through
 from .steady import SteadyState, make_config, march_then_shoot, resolve_method, solve_point
@@ -82,7 +82,9 @@ read_through(FrequencyResponse, FIELDS + DOF_FIELDS, "point")
 
 
 def _forcing(amplitude, omega):
-    return Harmonic(amplitude=amplitude, omega=omega)
+    """The forcing at ``omega``: ``amplitude`` is a force amplitude (a ``Harmonic``) or a
+    periodic forcing (its ``with_omega``)."""
+    return at_frequency(amplitude, omega)
 
 
 def _one_point(system, omega, amplitude, guess, cfg, method, with_floquet):
@@ -330,7 +332,10 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
 
     **Arguments**
 
-    - ``omegas``: sorted 1-D grid [rad/s]; ``amplitude``: force amplitude F0 [N].
+    - ``omegas``: sorted 1-D grid [rad/s]; ``amplitude``: force amplitude F0 [N] of
+      ``F0 sin(ωt)``, or a periodic forcing (``MultiHarmonic``,
+      ``PeriodicForcing`` ...) whose fundamental is swept: ``amplitude.with_omega(ω)``
+      at each ``ω`` (its own ``omega`` is not used).
     - ``method``: :class:`Shooting` (default) or :class:`Marching`, as an object or by name
       with its options as keywords (see :func:`steady_state`).
     - ``params``: optional ``{name: 1-D array}`` of designs (same length ``P``); names as in
@@ -374,7 +379,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
     om = np.asarray(omegas, dtype=float)
     if om[0] <= 0:
         raise ValueError(f"omegas must be > 0 [rad/s], got {om[0]:g}")
-    check_scalar("frequency_response", "amplitude", amplitude, lo=0.0)
+    amplitude = sweep_shape(amplitude, "frequency_response")
     method = resolve_method(method, "frequency_response", n=n, tol=tol, n_max=n_max,
                             newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
                             root=root, retry=retry)
@@ -401,7 +406,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
                     for d in designs) if names else choose_solver(system, f0, rtol=rtol) != "tsit5"
         solver = "kvaerno5" if stiff else "tsit5"
     cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
-    amp = jnp.asarray(amplitude, dtype=float)
+    amp = amplitude
     floquet = bool(floquet)
     order = om if direction != "down" else om[::-1]
 

@@ -1,27 +1,41 @@
-"""Elements attached to a :class:`LinearStructure` (issue 11): absorbers that bring a mass of
-their own, and nonlinear connections between two degrees of freedom or one and ground.
+"""Elements attached to a ``LinearStructure``: absorbers that bring a mass of their own,
+and connections between two degrees of freedom or one and ground.
 
 Each element reads the displacements and velocities of the degrees of freedom it touches,
 ``x = (x_a, x_b)`` and ``v = (v_a, v_b)`` (``x_b = v_b = 0`` when ``other`` is ground), and
 returns the forces ``(f_a, f_b)`` [N] it applies to them; an element with states of its own
 (an absorber's motion relative to its host ``u = x_abs - x_a``, ``w = u̇``; a bristle
 deflection ``z``) also gives their rates once the accelerations ``a = (a_a, a_b)`` of its
-degrees of freedom are known.  Generic code (``_structural``) talks to these members only.
+degrees of freedom are known.  Generic code (``_systems.structural``) talks to these members
+only.
 
-- :class:`ImpactDamper`: a mass in a clearance (any contact law) at one degree of freedom;
-- :class:`FrictionDamper`: a mass tied by a spring and dashpot, sliding under a normal force
-  (any smoothed or bristle friction law) at one degree of freedom;
-- :class:`TunedMassDamper`: a mass on a spring and dashpot (linear);
-- :class:`Contact`: a one- or two-sided contact with a gap between a degree of freedom and
+Displacements and velocities are those of the structure's model: relative to the support
+under a base excitation (ground is the moving support then), while the accelerations ``a``
+given to ``AbstractElement.state_rate`` are absolute (the support's acceleration
+included), so that an element's own mass feels its inertial load.
+
+The classes:
+
+- ``AbstractElement``: any element (write your own by subclassing it: a cubic spring
+  needs ``evaluate`` and ``energy``);
+- ``AbstractAbsorber``: a mass riding on one degree of freedom through a coupling force
+  (write your own by giving ``coupling``, ``coupling_energy``, ``coupling_dissipation``);
+- ``ImpactDamper``: a mass in a clearance (any contact law) at one degree of freedom;
+- ``FrictionDamper``: a mass tied by a spring and dashpot, sliding under a normal force
+  (any smoothed or bristle friction law, or the exact stick–slip one) at one degree of
+  freedom;
+- ``TunedMassDamper``: a mass on a spring and dashpot (linear);
+- ``Contact``: a one- or two-sided contact with a gap between a degree of freedom and
   ground or another degree of freedom (any contact law);
-- :class:`FrictionContact`: a friction contact between a degree of freedom and ground or
+- ``FrictionContact``: a friction contact between a degree of freedom and ground or
   another one (any smoothed or bristle friction law).
 
 Units: SI; on a rotational degree of freedom forces are moments [N m] and lengths [rad].
 """
 
-from __future__ import annotations
-
+# (no ``from __future__ import annotations`` here: equinox reads ``AbstractVar`` only from
+# evaluated annotations; as strings they would become required dataclass fields of the
+# abstract classes, ordered before the concrete classes' own)
 import abc
 import dataclasses
 from typing import ClassVar
@@ -39,41 +53,109 @@ def _zeros(n, like):
 
 
 class AbstractElement(eqx.Module):
-    """An element attached to a structure (module docstring)."""
+    r"""An element attached to a [`LinearStructure`][absorber_jax.LinearStructure] in a
+    [`StructuralSystem`][absorber_jax.StructuralSystem]: the base class of the absorbers,
+    tuned mass dampers and contacts, and of your own elements.
 
-    dof: eqx.AbstractVar[object]     # name (or index) of the degree of freedom it acts on
-    # every concrete element also has the (static, defaulted) fields ``other`` (the second
-    # degree of freedom, None for ground) and ``name`` (for parameters ``<name>.<field>``
-    # and outputs); not declared as AbstractVars here, whose position would come before the
-    # concrete classes' required fields
+    An element reads the displacements and velocities of the degrees of freedom it touches,
+    ``x = (x_a, x_b)`` and ``v = (v_a, v_b)`` (``x_b = v_b = 0`` when ``other`` is ground),
+    and returns the forces ``(f_a, f_b)`` [N] it applies to them; an element with states of
+    its own (an absorber's motion relative to its host, a bristle deflection) also gives
+    their rates once the accelerations ``a = (a_a, a_b)`` of its degrees of freedom are
+    known.  Displacements and velocities are relative to the support under a base
+    excitation, while the accelerations given to ``state_rate`` are absolute, so that an
+    element's own mass feels its inertial load.  Units: SI; on a rotational degree of
+    freedom forces are moments [N m] and lengths [rad].
 
-    kind: eqx.AbstractClassVar[str]  # default name stem
+    **Fields a concrete element declares**
+
+    - ``dof``: the degree of freedom it acts on (name or index), a static field:
+      ``dof: str = eqx.field(static=True)``.
+    - ``other``: the second degree of freedom, or ``None`` for ground (the support):
+      ``other: str | None = eqx.field(static=True, default=None)``.
+    - ``name``: its name in parameter paths (``<name>.<field>``) and outputs, or ``None`` for
+      ``<kind><count>``: ``name: str | None = eqx.field(static=True, default=None)``.
+    - ``kind``: a class variable, the stem of default names (default ``"element"``).
+
+    Its other fields are its parameters (``<name>.<field>`` in
+    [`replace_params`][absorber_jax.replace_params], sweeps and ``tune``).
+
+    **Methods it must define**
+
+    - ``evaluate(x, v, z) -> (forces, aux)``: ``x``, ``v``: displacements [m] and velocities
+      [m/s] of ``(dof, other)``, shape ``(2,)`` (ground reads 0); ``z``: its own states,
+      shape ``(num_states,)``.  ``forces``: the forces [N] it applies to ``(dof, other)``,
+      shape ``(2,)`` (the second is ignored for ground); ``aux``: anything
+      ``state_rate`` needs (``None`` when nothing).
+    - ``energy(x, v, z)``: the potential energy it stores plus the kinetic energy of its own
+      masses [J] (energy bookkeeping).
+
+    **Methods with defaults** (override where they do not hold): ``dissipation`` (0 W: a
+    conservative element), ``num_states``/``state_labels``/``state_rate``/``state_scale``
+    (no states of its own), ``momentum`` (no mass of its own), ``stiffness_rate`` (no fast
+    dynamics of its own), ``penetrations`` (no contact walls), ``length_floor`` (no gap),
+    ``aliases`` (no short parameter names).
+
+    ```python
+    import equinox as eqx, jax.numpy as jnp, absorber_jax as aj
+
+    class CubicSpring(aj.AbstractElement):
+        dof: str = eqx.field(static=True)
+        k3: float                                          # [N/m³]
+        other: str | None = eqx.field(static=True, default=None)
+        name: str | None = eqx.field(static=True, default=None)
+        kind = "cubic"
+
+        def evaluate(self, x, v, z):
+            f = self.k3 * (x[0] - x[1]) ** 3               # tension pulling dof back
+            return jnp.stack([-f, f]), None
+
+        def energy(self, x, v, z):
+            return 0.25 * self.k3 * (x[0] - x[1]) ** 4
+    ```
+    """
+
+    dof: eqx.AbstractVar[object]
+    other: eqx.AbstractVar[object]
+    name: eqx.AbstractVar[object]
+    kind: ClassVar[str] = "element"
 
     @property
     def num_states(self) -> int:
+        """How many states of its own it adds to the system's state (default 0)."""
         return 0
 
     @property
     def state_labels(self) -> tuple:
-        """Names of its states (suffixes of ``<name>.``)."""
-        return ()
+        """Names of its states (suffixes of ``<name>.`` in ``state_names``; default
+        ``z1, z2, ...``)."""
+        return tuple(f"z{i + 1}" for i in range(self.num_states))
 
     @abc.abstractmethod
     def evaluate(self, x, v, z):
-        """``(forces (f_a, f_b) [N], aux)`` for displacements ``x``, velocities ``v`` of its
-        two degrees of freedom and its states ``z``; ``aux`` goes to :meth:`state_rate`."""
+        """``(forces (f_dof, f_other) [N], aux)`` for displacements ``x`` [m], velocities
+        ``v`` [m/s] of its two degrees of freedom (ground: 0) and its states ``z``; ``aux``
+        goes to ``state_rate``."""
 
     def state_rate(self, x, v, a, z, aux):
-        """d/dt of its states given the accelerations ``a`` of its degrees of freedom."""
+        """d/dt of its states given the absolute accelerations ``a`` [m/s²] of its degrees
+        of freedom (the support's included under a base excitation) and ``aux`` from
+        ``evaluate``.  Default: no states."""
         return _zeros(0, x)
 
     @abc.abstractmethod
     def energy(self, x, v, z):
         """Kinetic energy of its own masses plus the potential energy it stores [J]."""
 
-    @abc.abstractmethod
     def dissipation(self, x, v, z):
-        """Power [W] it dissipates."""
+        """Power [W] it dissipates (>= 0).  Default 0: a conservative element."""
+        return jnp.zeros((), dtype=jnp.result_type(x, float))
+
+    def momentum(self, x, v, z):
+        """Momentum [kg m/s] of its own masses along its degree of freedom, in the
+        structure's frame (the power a support acceleration ``a_g`` puts into them is
+        ``-a_g r · momentum``).  Default 0: no mass of its own."""
+        return jnp.zeros((), dtype=jnp.result_type(x, float))
 
     @property
     def num_strokes(self) -> int:
@@ -94,63 +176,29 @@ class AbstractElement(eqx.Module):
         return jnp.zeros((), int)
 
     def state_scale(self, length, omega):
-        """Natural size of its states for a motion of size ``length`` at ``omega``."""
-        return _zeros(0, length)
+        """Natural size of its states for a motion of size ``length`` [m] at ``omega``
+        [rad/s] (the integrator's tolerances apply to the states divided by it).  Default:
+        1 per state."""
+        return jnp.ones((self.num_states,), dtype=jnp.result_type(length, float))
 
     def length_floor(self):
-        """Smallest natural length [m] of the motion it allows (a gap)."""
+        """Smallest natural length [m] of the motion it allows (a gap; default 0)."""
         return jnp.zeros(())
 
-    @abc.abstractmethod
     def stiffness_rate(self, host_mass):
-        """Rough largest rate [1/s] it adds (``host_mass``: the structure's effective mass
-        at its degree of freedom)."""
+        """Rough largest rate [1/s] it adds to the dynamics (``host_mass`` [kg]: the
+        structure's effective mass at its degree of freedom), for the automatic choice of an
+        implicit solver.  Default 0: nothing faster than the structure."""
+        return jnp.zeros(())
 
     def oscillation_rate(self, host_mass):
+        """Angular frequency [rad/s] of a fast, lightly damped oscillation it adds (default
+        0: none)."""
         return jnp.zeros(())
 
     def aliases(self) -> dict:
         """Short parameter names mapped to field paths within the element."""
         return {}
-
-    # -- exact stick–slip (one element per system, see StructuralSystem's hybrid members) --
-    @property
-    def exact(self) -> bool:
-        """True when the element's friction is the exact nonsmooth law (event-driven)."""
-        return False
-
-    def slip_velocity(self, z):
-        """Sliding velocity ``V`` whose sign is the slip mode (exact elements only)."""
-        raise NotImplementedError
-
-    def evaluate_mode(self, x, v, z, friction_force):
-        """:meth:`evaluate` with the friction force given (exact elements only)."""
-        raise NotImplementedError
-
-    def holding_friction(self, z, host_acceleration, host_compliance):
-        """Friction force [N] that keeps it stuck, from the host's acceleration without its
-        force and the host's acceleration per unit force on it (exact elements only)."""
-        raise NotImplementedError
-
-    def stuck_rate(self, rate):
-        """Its state rate while stuck (the sliding coordinates frozen)."""
-        raise NotImplementedError
-
-    def breakaway(self):
-        """Largest friction force [N] it holds while stuck (exact elements only)."""
-        raise NotImplementedError
-
-    def kinetic(self, speed):
-        """Friction force magnitude [N] while slipping at ``speed`` (exact elements only)."""
-        raise NotImplementedError
-
-    def inertia(self):
-        """The mass [kg] whose inertia force scales its holding force (exact elements)."""
-        raise NotImplementedError
-
-    def stop_slip(self, z):
-        """Its states with the sliding velocity set exactly to zero (end of a slip)."""
-        raise NotImplementedError
 
     def parameter_names(self) -> list:
         fields = [f.name for f in dataclasses.fields(self)
@@ -161,6 +209,56 @@ class AbstractElement(eqx.Module):
         """Element-level checks that need the structure (none by default)."""
 
 
+class AbstractStickSlipElement(AbstractElement):
+    """An element whose friction may be the exact nonsmooth law, integrated by switching
+    between stick and slip at events (one such element per system; see
+    ``StructuralSystem``'s hybrid members).  ``FrictionDamper`` implements it."""
+
+    @property
+    @abc.abstractmethod
+    def exact(self) -> bool:
+        """True when the element's friction is the exact nonsmooth law (event-driven)."""
+
+    @abc.abstractmethod
+    def slip_velocity(self, z):
+        """Sliding velocity ``V`` [m/s] whose sign is the slip mode."""
+
+    @abc.abstractmethod
+    def evaluate_mode(self, x, v, z, friction_force):
+        """``evaluate`` with the friction force [N] given."""
+
+    @abc.abstractmethod
+    def holding_friction(self, z, host_acceleration, host_compliance):
+        """Friction force [N] that keeps it stuck, from the host's absolute acceleration
+        [m/s²] without its force and the host's acceleration per unit force on it
+        [1/kg]."""
+
+    @abc.abstractmethod
+    def stuck_rate(self, rate):
+        """Its state rate while stuck (the sliding coordinates frozen)."""
+
+    @abc.abstractmethod
+    def breakaway(self):
+        """Largest friction force [N] it holds while stuck."""
+
+    @abc.abstractmethod
+    def kinetic(self, speed):
+        """Friction force magnitude [N] while slipping at ``speed`` [m/s]."""
+
+    @abc.abstractmethod
+    def inertia(self):
+        """The mass [kg] whose inertia force scales its holding force."""
+
+    @abc.abstractmethod
+    def stop_slip(self, z):
+        """Its states with the sliding velocity set exactly to zero (end of a slip)."""
+
+
+def is_exact(element) -> bool:
+    """Whether ``element`` is integrated with exact (event-driven) stick–slip."""
+    return isinstance(element, AbstractStickSlipElement) and bool(element.exact)
+
+
 def _law_aliases(law, prefix):
     return {f.name: f"{prefix}.{f.name}" for f in dataclasses.fields(law)
             if f.init and f.name != "exact"}
@@ -168,14 +266,15 @@ def _law_aliases(law, prefix):
 
 def _check_contact(owner, law):
     if not isinstance(law, AbstractContactLaw):
-        raise ValueError(f"{owner}.contact must be a contact law (KelvinVoigt, Hertz or "
-                         f"HuntCrossley), got {type(law).__name__}")
+        raise ValueError(f"{owner}.contact must be a contact law (KelvinVoigt, Hertz, "
+                         f"HuntCrossley or another AbstractContactLaw), got "
+                         f"{type(law).__name__}")
 
 
 def _check_friction(owner, law, *, exact_ok):
     if not isinstance(law, AbstractFrictionLaw):
-        raise ValueError(f"{owner}.friction must be a friction law (Coulomb, Stribeck, Dahl "
-                         f"or LuGre), got {type(law).__name__}")
+        raise ValueError(f"{owner}.friction must be a friction law (Coulomb, Stribeck, Dahl, "
+                         f"LuGre or another AbstractFrictionLaw), got {type(law).__name__}")
     if law.exact and not exact_ok:
         raise ValueError(
             f"{owner}.friction: exact stick–slip (events) is available in FrictionDamper; "
@@ -183,12 +282,27 @@ def _check_friction(owner, law, *, exact_ok):
             f"(Dahl, LuGre)")
 
 
-class _Absorber(AbstractElement):
-    """An absorber mass ``m`` riding on its host degree of freedom; states ``u = x_abs -
-    x_host``, ``w = u̇``.  The force it applies to the host is ``coupling(u, w, z)``."""
+class AbstractAbsorber(AbstractElement):
+    r"""An absorber: a mass ``m`` [kg] riding on its host degree of freedom ``dof`` through a
+    coupling force.  Its states are ``u = x_abs - x_host`` [m], ``w = u̇`` [m/s] and the
+    coupling's own states ``z`` (a bristle deflection); its equation of motion is
+    ``m (a_host + ẇ) = -f`` with ``f = coupling(u, w, z)`` the force it applies to the host
+    and ``a_host`` the host's absolute acceleration.
 
-    # every concrete absorber has a field ``m`` (its mass [kg]); not declared as an
-    # AbstractVar here: equinox 0.13 rejects a converter field overriding one
+    **A concrete absorber declares** the fields ``dof``, ``m`` (its mass [kg]), ``name`` and
+    ``other = eqx.field(static=True, default=None, init=False)`` (an absorber has no second
+    degree of freedom), and defines:
+
+    - ``coupling(u, w, z) -> (f, dz/dt)``: the force [N] on the host and the rates of the
+      coupling's states (empty when it has none);
+    - ``coupling_energy(u, z)``: the potential energy [J] of the coupling;
+    - ``coupling_dissipation(u, w, z)``: the power [W] it dissipates.
+
+    Optional: ``num_law_states`` and ``law_state_scale`` (coupling states), ``length_floor``
+    (a gap), ``stiffness_rate`` (a stiff coupling).
+    """
+
+    m: eqx.AbstractVar[object]
 
     @property
     def num_states(self) -> int:
@@ -196,6 +310,7 @@ class _Absorber(AbstractElement):
 
     @property
     def num_law_states(self) -> int:
+        """States of the coupling itself (default 0)."""
         return 0
 
     @property
@@ -204,7 +319,8 @@ class _Absorber(AbstractElement):
 
     @abc.abstractmethod
     def coupling(self, u, w, z):
-        """``(force on the host [N], dz/dt)``."""
+        """``(force on the host [N], dz/dt)`` for the relative motion ``u`` [m], ``w``
+        [m/s] and the coupling's states ``z``."""
 
     @abc.abstractmethod
     def coupling_energy(self, u, z):
@@ -229,6 +345,9 @@ class _Absorber(AbstractElement):
     def dissipation(self, x, v, z):
         return self.coupling_dissipation(z[0], z[1], z[2:])
 
+    def momentum(self, x, v, z):
+        return self.m * (v[0] + z[1])
+
     @property
     def num_strokes(self) -> int:
         return 1
@@ -241,10 +360,11 @@ class _Absorber(AbstractElement):
         return jnp.concatenate([jnp.stack([L, L * omega]), self.law_state_scale()])
 
     def law_state_scale(self):
-        return jnp.zeros((0,))
+        """Natural size of the coupling's states (empty when it has none)."""
+        return jnp.ones((self.num_law_states,))
 
 
-class ImpactDamper(_Absorber):
+class ImpactDamper(AbstractAbsorber):
     r"""An impact absorber at a degree of freedom: a mass ``m`` [kg] moving freely in a
     cavity of the host with clearance ``gap`` [m] on each side, ``contact`` any contact law
     (the paper's section 2 with the host as primary).  With ``u = x_abs - x_host``,
@@ -294,7 +414,7 @@ class ImpactDamper(_Absorber):
         return _law_aliases(self.contact, "contact")
 
 
-class FrictionDamper(_Absorber):
+class FrictionDamper(AbstractAbsorber, AbstractStickSlipElement):
     r"""A friction absorber at a degree of freedom: a mass ``m`` [kg] tied to the host by a
     spring ``k`` [N/m] and a dashpot ``c`` [N s/m] and sliding on it under the normal force
     ``normal_force`` [N] (parameter alias ``N``) with ``friction`` a smoothed (``eps``) or
@@ -388,7 +508,7 @@ class FrictionDamper(_Absorber):
         return z.at[1].set(0.0)
 
 
-class TunedMassDamper(_Absorber):
+class TunedMassDamper(AbstractAbsorber):
     r"""A linear tuned mass damper at a degree of freedom: a mass ``m`` [kg] on a spring
     ``k`` [N/m] and a dashpot ``c`` [N s/m]; force on the host ``k u + c u̇``.
 

@@ -1,6 +1,6 @@
-r"""The general system (issue 11): a :class:`LinearStructure` carrying any number of elements
-(absorbers, tuned mass dampers, contacts, friction contacts), loaded by ``F(t)`` distributed
-over its degrees of freedom.
+r"""The general system: a ``LinearStructure`` carrying any number of elements
+(absorbers, tuned mass dampers, contacts, friction contacts, your own), loaded by ``F(t)``
+distributed over its degrees of freedom,
 
 $$M_q\ddot q + C_q\dot q + K_q q = \Phi^T\Big(b\,F(t) + \sum_e f_e(\Phi q, \Phi\dot q, z_e)\Big),$$
 
@@ -8,9 +8,16 @@ each element ``e`` reading the displacements ``x = Φ q`` of its degrees of free
 states ``z_e`` (an absorber's relative motion, a bristle deflection) and pushing back with
 ``f_e``; its states then evolve with the degrees of freedom's accelerations ``Φ q̈``.
 
+Or shaken at its support (``BaseExcitation``): ``F(t) = a_g(t)`` is then the support's
+acceleration [m/s²] along the influence vector ``r`` over the degrees of freedom, and the
+model is written relative to the support, ``x = x_abs - r u_g``: the load is the inertia
+``-M_q r_q a_g(t)`` of the structure (``Φ r_q = r``), and every element's own mass feels
+``-m r a_g`` too (its state rate is given the absolute accelerations ``Φ q̈ + r a_g``).
+
 State (internal = public), a flat vector with named slices (``state_names``, ``slice_of``):
 ``[q (n), q̇ (n), element states ...]`` in the structure's coordinates (the degrees of freedom
-themselves for a matrix model, modal coordinates for a modal one).
+themselves for a matrix model, modal coordinates for a modal one); relative to the support
+under a base excitation.
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ import numpy as np
 
 from .._core.checks import is_traced
 from .base import AbstractSystem
-from .elements import AbstractElement
+from .elements import AbstractElement, is_exact
 from .linear import finite_or_zero
 from .structure import LinearStructure
 
@@ -50,6 +57,64 @@ def _weights(structure, value, field):
     return arr
 
 
+class BaseExcitation(eqx.Module):
+    r"""The ``load`` of a ``StructuralSystem`` shaken at its support: the forcing is then
+    the support's acceleration ``a_g(t)`` [m/s²] (any forcing object: ``Harmonic``,
+    ``MultiHarmonic``, ``PeriodicForcing``, a recorded signal of your own...).
+
+    The system is written relative to the support, ``x = x_abs - r u_g`` with ``r`` the
+    ``influence`` vector (the displacement of each degree of freedom for a unit rigid motion
+    of the support): the structure is loaded by ``-M r a_g(t)`` (``-M_q r_q a_g`` in its
+    coordinates, ``Φ r_q = r``), and each element's own mass ``m`` by ``-m r a_g`` (absorbers
+    and tuned mass dampers move with the absolute acceleration of their host).  Elements
+    "to ground" connect to the moving support.  Results (displacements, velocities,
+    ``dof_amplitude``, trajectories) are relative to the support; an absorber's stroke is
+    relative to its host either way.  Add ``r u_g(t)`` for absolute displacements.
+
+    **Arguments**
+
+    - ``influence``: ``r``: ``None`` (every degree of freedom moves with the support: a shear
+      building, any model of translations), a degree-of-freedom name, a ``{name: weight}``
+      dict or a vector over the degrees of freedom (a beam shaken sideways: ``1`` on the
+      deflections ``w*``, ``0`` on the slopes ``th*``).
+    - ``participation``: ``M_q r_q`` in the structure's coordinates [kg], for structures
+      observed at fewer degrees of freedom than they have coordinates (a truncated modal
+      model: its participation factors, ``LinearStructure.modal_participation`` of the
+      full model).  Default: computed from ``r`` through ``Φ`` (square).
+
+    ```python
+    building = shear_building([1.0] * 3, [1e3] * 3, rayleigh=(0.1, 1e-4))
+    sys = StructuralSystem(building, [TunedMassDamper("floor3", m=0.1, k=25.0, c=0.5)],
+                           load=BaseExcitation(), observe="floor3")
+    steady_state(sys, Harmonic(amplitude=0.5, omega=15.0))   # a_g = 0.5 sin(15 t) m/s²
+    ```
+    """
+
+    influence: object = None
+    participation: object = None
+
+    def vectors(self, structure):
+        """``(r, M_q r_q)``: the influence over the degrees of freedom and the inertia per
+        unit support acceleration in the coordinates [kg] (ValueError when they cannot be
+        formed)."""
+        n, nc = structure.num_dofs, structure.num_coords
+        r = (jnp.ones((n,)) if self.influence is None
+             else _weights(structure, self.influence, "load (BaseExcitation.influence)"))
+        if self.participation is not None:
+            p = jnp.asarray(self.participation, dtype=float)
+            if p.shape != (nc,):
+                raise ValueError(f"BaseExcitation.participation must have one value per "
+                                 f"coordinate of the structure ({nc}), got shape {p.shape}")
+            return r, p
+        if n != nc:
+            raise ValueError(f"BaseExcitation: the structure has {nc} coordinates observed at "
+                             f"{n} degrees of freedom, so its rigid motion cannot be read from "
+                             f"them: give participation= (M_q r_q in its coordinates, e.g. "
+                             f"full.modal_participation(n_modes) of the full model)")
+        r_q = jnp.linalg.solve(structure.dof_map, r)
+        return r, structure.mass @ r_q
+
+
 def _all_diagonal(*mats) -> bool:
     """Whether every matrix is (concretely) diagonal; False for traced ones."""
     if any(is_traced(m) for m in mats):
@@ -58,23 +123,49 @@ def _all_diagonal(*mats) -> bool:
 
 
 class StructuralSystem(AbstractSystem):
-    """A linear structure with elements attached, forced by ``F(t) · load`` (module
-    docstring).
+    r"""A linear structure with elements attached, forced by ``F(t) · load`` or shaken at its
+    support.
+
+    With the structure's mass, damping and stiffness ``M_q``, ``C_q``, ``K_q`` in its
+    coordinates ``q``, ``x = Φ q`` the displacements of the degrees of freedom and ``b`` the
+    ``load`` vector:
+
+    $$
+    M_q\ddot q + C_q\dot q + K_q q = \Phi^T\Big(b\,F(t) + \sum_e f_e(\Phi q, \Phi\dot q, z_e)\Big),
+    $$
+
+    each element ``e`` reading the displacements and velocities of its degrees of freedom
+    and its own states ``z_e`` (an absorber's relative motion, a bristle deflection) and
+    pushing back with ``f_e``; its states evolve with the accelerations ``Φ q̈``.  Under a
+    ``BaseExcitation`` load, ``F(t)`` is the support's acceleration [m/s²] and the model is
+    written relative to the support.  The state (internal = public) is a flat vector with
+    named slices (``state_names``, ``slice_of``): ``[q (n), q̇ (n), element states ...]`` in
+    the structure's coordinates (the degrees of freedom themselves for a matrix model, modal
+    coordinates for a modal one).  Worked examples: the Structures guide of the
+    documentation.
 
     **Arguments**
 
-    - ``structure``: a :class:`LinearStructure` (matrices or modes).
-    - ``elements``: a sequence of elements (:class:`ImpactDamper`, :class:`FrictionDamper`,
-      :class:`TunedMassDamper`, :class:`Contact`, :class:`FrictionContact`), each named by its
-      ``name`` or ``<kind><count>`` (``impact1``, ``tmd2``, ...); their parameters are
-      ``<name>.<field>`` (``tmd1.k``, ``friction1.N``).
+    - ``structure``: a [`LinearStructure`][absorber_jax.LinearStructure] (matrices or modes).
+    - ``elements``: a sequence of elements ([`ImpactDamper`][absorber_jax.ImpactDamper],
+      [`FrictionDamper`][absorber_jax.FrictionDamper],
+      [`TunedMassDamper`][absorber_jax.TunedMassDamper], [`Contact`][absorber_jax.Contact],
+      [`FrictionContact`][absorber_jax.FrictionContact] or any
+      [`AbstractElement`][absorber_jax.AbstractElement] of your own), each named by its ``name`` or
+      ``<kind><count>`` (``impact1``, ``tmd2``, ...); their parameters are ``<name>.<field>``
+      (``tmd1.k``, ``friction1.N``).
     - ``load``: where ``F(t)`` acts: a degree-of-freedom name (unit weight), a
       ``{name: weight}`` dict or a vector over the degrees of freedom (a force [N] per unit
-      ``F``).
+      ``F``); or a ``BaseExcitation``: ``F(t)`` is the support's acceleration [m/s²]
+      and the model is relative to the support.
     - ``observe``: the observable of the results and design objectives: a degree of freedom,
       or a ``{name: weight}`` dict / vector for the weighted signal ``Σ w_i x_i`` (e.g. an
       inter-storey drift ``{"x3": 1, "x2": -1}``); default the loaded degree of freedom
-      when the load acts on one.
+      when the load acts on one (required under a base excitation).
+
+    Fields: ``load`` (the weights over the degrees of freedom, or the
+    ``BaseExcitation`` with its ``influence`` and ``participation`` as arrays),
+    ``observe``, ``mass_inverse``; ``base_excited`` (static).
 
     ```python
     building = shear_building([1.0] * 3, [1e3] * 3, rayleigh=(0.1, 1e-4))
@@ -85,9 +176,10 @@ class StructuralSystem(AbstractSystem):
 
     structure: LinearStructure
     elements: tuple
-    load: jax.Array
+    load: jax.Array | BaseExcitation
     observe: jax.Array
     mass_inverse: jax.Array
+    base_excited: bool = eqx.field(static=True, init=False)
     # mass, damping and stiffness all diagonal (a modal model): the equations of motion are
     # then evaluated mode by mode (elementwise) instead of by matrix products
     diagonal: bool = eqx.field(static=True, init=False)
@@ -100,8 +192,8 @@ class StructuralSystem(AbstractSystem):
         for e in elements:
             if not isinstance(e, AbstractElement):
                 raise ValueError(f"StructuralSystem.elements must be elements (ImpactDamper, "
-                                 f"FrictionDamper, TunedMassDamper, Contact, FrictionContact), "
-                                 f"got {type(e).__name__}")
+                                 f"FrictionDamper, TunedMassDamper, Contact, FrictionContact "
+                                 f"or another AbstractElement), got {type(e).__name__}")
             for d in (e.dof,) + (() if e.other is None else (e.other,)):
                 try:
                     structure.dof_index(d)
@@ -110,8 +202,16 @@ class StructuralSystem(AbstractSystem):
                                      f"{err}") from None
         self.structure = structure
         self.elements = elements
-        self.load = _weights(structure, load, "load")
+        self.base_excited = isinstance(load, BaseExcitation)
+        if self.base_excited:
+            r, p = load.vectors(structure)
+            self.load = BaseExcitation(influence=r, participation=p)
+        else:
+            self.load = _weights(structure, load, "load")
         if observe is None:
+            if self.base_excited:
+                raise ValueError("StructuralSystem.observe must be given with a "
+                                 "BaseExcitation load")
             nz = np.flatnonzero(np.asarray(self.load))
             if nz.size != 1:
                 raise ValueError("StructuralSystem.observe must be given when the load acts on "
@@ -122,7 +222,7 @@ class StructuralSystem(AbstractSystem):
                              else jnp.asarray(mass_inverse, dtype=float))
         self.diagonal = _all_diagonal(structure.mass, structure.damping, structure.stiffness,
                                       self.mass_inverse)
-        if sum(bool(e.exact) for e in elements) > 1:
+        if sum(is_exact(e) for e in elements) > 1:
             raise ValueError("StructuralSystem.elements: at most one friction damper with an "
                              "exact (event-driven) law; give the others an eps")
         names = self.element_names
@@ -235,13 +335,27 @@ class StructuralSystem(AbstractSystem):
                 f = f.at[b].add(fe[1])
         return f, auxes
 
+    def coordinate_load(self):
+        """The load per unit ``F`` in the structure's coordinates: ``Φᵀ load`` [N], or
+        ``-M_q r_q`` [kg] under a base excitation."""
+        if self.base_excited:
+            return -self.load.participation
+        return self.load @ self.structure.dof_map
+
+    def _support_at(self, idx, f_ext):
+        """The support's acceleration ``r a_g`` at the degrees of freedom ``idx`` (zero
+        unless base-excited)."""
+        if not self.base_excited:
+            return jnp.zeros((len(idx),))
+        return self.load.influence[np.asarray(idx, dtype=int)] * f_ext
+
     def _accelerations(self, s, f_used, f_ext):
         """``q̈`` under the element forces ``f_used`` (at ``_used``) and the load ``F = f_ext``."""
         st = self.structure
         q, qd, _ = self._pieces(s)
         used, _ = self._used()
         rhs = (st.dof_map[np.asarray(used, dtype=int)].T @ f_used
-               + (self.load @ st.dof_map) * f_ext)
+               + self.coordinate_load() * f_ext)
         if self.diagonal:
             return jnp.diagonal(self.mass_inverse) * (
                 rhs - jnp.diagonal(st.damping) * qd - jnp.diagonal(st.stiffness) * q)
@@ -253,8 +367,9 @@ class StructuralSystem(AbstractSystem):
         views = self._element_views(s)
         f, auxes = self._forces(views, exact_force)
         qdd = self._accelerations(s, f, f_ext)
-        au = self._at_elements(qdd)
-        _, pos = self._used()
+        used, pos = self._used()
+        # absolute accelerations: an element's own mass feels the support's too
+        au = self._at_elements(qdd) + self._support_at(used, f_ext)
         rates = []
         for i, (e, (a, b), (xe, ve, z), aux) in enumerate(zip(self.elements, pos, views,
                                                                auxes)):
@@ -267,7 +382,7 @@ class StructuralSystem(AbstractSystem):
 
     # -- exact stick–slip of one friction damper (modes 0 stick, ±1 slip with sign(V)) -----
     def _exact_index(self):
-        idx = [i for i, e in enumerate(self.elements) if e.exact]
+        idx = [i for i, e in enumerate(self.elements) if is_exact(e)]
         return idx[0] if idx else -1
 
     @property
@@ -286,7 +401,7 @@ class StructuralSystem(AbstractSystem):
         f_ext = forcing(t)
         f, _ = self._forces(self._element_views(s), exact_force=jnp.zeros(()), skip=i)
         phi = self.structure.dof_map[ia]
-        a0 = phi @ self._accelerations(s, f, f_ext)
+        a0 = phi @ self._accelerations(s, f, f_ext) + self._support_at([ia], f_ext)[0]
         return e.holding_friction(z, a0, phi @ self.mass_inverse @ phi)
 
     def _holding_mode(self, t, s, forcing):
@@ -348,12 +463,20 @@ class StructuralSystem(AbstractSystem):
         return e
 
     def power(self, t, s, forcing):
+        """``(input power, dissipated power)`` [W]; under a base excitation the input is the
+        power of the inertia loads ``-M r a_g`` and ``-m r a_g`` in the support's frame."""
         st = self.structure
         _, qd, _ = self._pieces(s)
         diss = qd @ st.damping @ qd
-        for el, (xe, ve, z) in zip(self.elements, self._element_views(s)):
+        f_ext = forcing(t)
+        pin = f_ext * (self.coordinate_load() @ qd)
+        views = self._element_views(s)
+        for el, (xe, ve, z) in zip(self.elements, views):
             diss = diss + el.dissipation(xe, ve, z)
-        return forcing(t) * (self.load @ (st.dof_map @ qd)), diss
+        if self.base_excited:
+            for (ia, _), el, (xe, ve, z) in zip(self._dofs(), self.elements, views):
+                pin = pin - f_ext * self.load.influence[ia] * el.momentum(xe, ve, z)
+        return pin, diss
 
     # -- scales, guesses, solver hints ---------------------------------------------------
     def _host_masses(self):
@@ -372,7 +495,7 @@ class StructuralSystem(AbstractSystem):
         from the resulting length at its degree of freedom."""
         st = self.structure
         w = forcing.omega
-        g = forcing.amplitude * jnp.max(jnp.abs(st.dof_map.T @ self.load))
+        g = forcing.amplitude * jnp.max(jnp.abs(self.coordinate_load()))
         Lc = g / (jnp.diag(st.stiffness) + w**2 * jnp.diag(st.mass))
         reach = jnp.maximum(jnp.max(jnp.abs(st.dof_map), axis=0), 1e-300)
         Lc = jnp.maximum(jnp.maximum(Lc, self._length_floor() / reach), 1e-12)
@@ -383,15 +506,24 @@ class StructuralSystem(AbstractSystem):
         return jnp.concatenate(parts)
 
     def linear_guess(self, forcing):
-        """The harmonic response of the system linearised at rest (open gaps, floating
-        impact absorbers, smoothed friction at its initial slope), at ``t = 0``."""
+        """The periodic response of the system linearised at rest (open gaps, floating
+        impact absorbers, smoothed friction at its initial slope) at ``t = 0``: the
+        responses to the forcing's harmonics (``forcing.harmonics()``) superposed.  A
+        harmonic the linearisation cannot respond to (a floating absorber under a constant
+        load) is left out."""
         rest = self.rest_state()
         A = jax.jacfwd(self._rate)(rest, 0.0)
         b = jax.jacfwd(self._rate, argnums=1)(rest, 0.0)
         n = A.shape[0]
-        X = jnp.linalg.solve(1j * forcing.omega * jnp.eye(n) - A,
-                             (b * forcing.amplitude).astype(complex))
-        return finite_or_zero(jnp.imag(X))  # F0 sin(ωt) = Im(F0 e^{iωt})
+        orders, coefficients = forcing.harmonics()
+
+        def response(w, c):
+            # c e^{iwt} -> X e^{iwt}; the forcing is Im(Σ c e^{iwt})
+            X = jnp.linalg.solve(1j * w * jnp.eye(n) - A, (b * c).astype(complex))
+            return finite_or_zero(jnp.imag(X))
+
+        w = forcing.omega * jnp.asarray(orders, dtype=float)
+        return jnp.sum(jax.vmap(response)(w, jnp.asarray(coefficients, dtype=complex)), axis=0)
 
     def stiffness_rate(self):
         st = self.structure

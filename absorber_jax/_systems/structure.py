@@ -1,6 +1,6 @@
-"""Linear structures: the primary of a multi-degree-of-freedom scene (issue 11, first part).
+"""Linear structures: the primary of a multi-degree-of-freedom scene.
 
-A :class:`LinearStructure` is a linear second-order model in its own coordinates ``q``,
+A ``LinearStructure`` is a linear second-order model in its own coordinates ``q``,
 
 $$M_q\\ddot q + C_q\\dot q + K_q q = \\Phi^T f(t),\\qquad x = \\Phi q,$$
 
@@ -12,11 +12,12 @@ degree of freedom read ``x = Φ q`` and push back with ``Φ^T f``, so both model
 elements.  Units: SI (kg, N/m, N s/m, rad/s); degrees of freedom may be rotations (a beam's
 slopes, [rad], with moments [N m]).
 
-Constructors: :func:`structure_from_matrices` (damping as a matrix, Rayleigh coefficients or
-modal damping ratios), :func:`structure_from_modes`, :func:`shear_building`,
-:func:`cantilever_beam`; :meth:`LinearStructure.modal` reduces a structure to its modes,
-:meth:`LinearStructure.with_tuned_mass_dampers` adds linear absorbers as coordinates of
-their own.  :meth:`LinearStructure.receptance` is the closed-form complex FRF
+Constructors: ``structure_from_matrices`` (damping as a matrix, Rayleigh coefficients or
+modal damping ratios), ``structure_from_modes``, ``shear_building``,
+``cantilever_beam``; ``LinearStructure.modal`` reduces a structure to its modes
+(``LinearStructure.modal_participation``: their participation in a support motion),
+``LinearStructure.with_tuned_mass_dampers`` adds linear absorbers as coordinates of
+their own.  ``LinearStructure.receptance`` is the closed-form complex FRF
 ``Φ (K_q - ω² M_q + iω C_q)^{-1} Φ^T``.
 """
 
@@ -70,8 +71,24 @@ def _names(owner, dof_names, n, prefix="x"):
 
 
 class LinearStructure(eqx.Module):
-    """A linear structure in coordinates ``q`` observed at named degrees of freedom
-    (module docstring).  Build it with the constructors rather than by hand.
+    r"""A linear structure in coordinates ``q`` observed at named degrees of freedom ``x``:
+
+    $$M_q\ddot q + C_q\dot q + K_q q = \Phi^T f(t),\qquad x = \Phi q,$$
+
+    loaded and observed through the output map ``Φ`` (``n_dofs × n_coords``).  A matrix
+    model has ``q = x`` and ``Φ = I``; a modal model has modal coordinates, ``M_q = I``,
+    ``C_q = diag(2 ζ_r ω_r)``, ``K_q = diag(ω_r²)`` and ``Φ`` the mass-normalised mode shapes
+    at the degrees of freedom that matter.  Elements attached at a degree of freedom read
+    ``x = Φ q`` and push back with ``Φ^T f``, so both models carry the same elements.  Units:
+    SI (kg, N/m, N s/m, rad/s); degrees of freedom may be rotations (a beam's slopes [rad],
+    with moments [N m]).
+
+    Build it with the constructors rather than by hand:
+    [`structure_from_matrices`][absorber_jax.structure_from_matrices] (damping as a matrix,
+    Rayleigh coefficients or modal damping ratios),
+    [`structure_from_modes`][absorber_jax.structure_from_modes],
+    [`shear_building`][absorber_jax.shear_building],
+    [`cantilever_beam`][absorber_jax.cantilever_beam].
 
     **Fields**: ``mass``, ``damping``, ``stiffness`` (``n_coords × n_coords``, in the
     coordinates), ``dof_map`` ``Φ`` (``n_dofs × n_coords``), ``dof_names`` (static).
@@ -147,6 +164,29 @@ class LinearStructure(eqx.Module):
         return LinearStructure(mass=jnp.eye(n), damping=jnp.diag(zeta_2w),
                                stiffness=jnp.diag(lam[:n]), dof_map=shapes,
                                dof_names=tuple(self.dof_names[i] for i in idx))
+
+    def modal_participation(self, n_modes=None, influence=None):
+        """The participation factors ``Γ_r = ψ_rᵀ M_q r_q`` [kg^½] of the lowest ``n_modes``
+        modes (default all; normalised and ordered as ``modal`` gives them) for a
+        support motion along ``influence`` (``r`` over the degrees of freedom: ``None`` for
+        all ones, or a vector; ``Φ r_q = r``, ``Φ`` square): what
+        ``BaseExcitation(participation=...)`` needs for ``self.modal(n_modes, ...)``, whose
+        modal load under a support acceleration ``a_g`` is ``-Γ a_g``."""
+        n = self.num_coords if n_modes is None else n_modes
+        if not isinstance(n, int) or not 1 <= n <= self.num_coords:
+            raise ValueError(f"modal_participation.n_modes must be an integer in "
+                             f"[1, {self.num_coords}], got {n_modes!r}")
+        if self.num_dofs != self.num_coords:
+            raise ValueError("modal_participation needs a structure observed at as many "
+                             "degrees of freedom as it has coordinates (the full model)")
+        r = (jnp.ones((self.num_dofs,)) if influence is None
+             else jnp.asarray(influence, dtype=float))
+        if r.shape != (self.num_dofs,):
+            raise ValueError(f"modal_participation.influence must have shape "
+                             f"({self.num_dofs},), got {r.shape}")
+        _, psi = _modes(self.mass, self.stiffness)
+        r_q = jnp.linalg.solve(self.dof_map, r)
+        return psi[:, :n].T @ self.mass @ r_q
 
     def with_tuned_mass_dampers(self, dampers):
         """This structure with linear tuned mass dampers added, each a coordinate (and a
@@ -263,7 +303,8 @@ def shear_building(masses, storey_stiffnesses, *, damping=None, rayleigh=None,
     """A shear building: floor ``masses`` [kg] (ground floor first) on storeys of lateral
     stiffness ``storey_stiffnesses`` [N/m] (storey ``i`` joins floor ``i`` to the one below,
     storey 1 to the ground).  Degrees of freedom ``floor1 … floorN`` (lateral
-    displacements); damping as in :func:`structure_from_matrices`."""
+    displacements); damping as in
+    [`structure_from_matrices`][absorber_jax.structure_from_matrices]."""
     m = np.asarray(masses, dtype=float).reshape(-1)
     k = np.asarray(storey_stiffnesses, dtype=float).reshape(-1)
     if m.size < 1 or np.any(~np.isfinite(m)) or np.any(m <= 0):
@@ -289,7 +330,7 @@ def cantilever_beam(n_elements, *, length, EI, rho_A, damping=None, rayleigh=Non
     mass: ``length`` [m], bending stiffness ``EI`` [N m²], mass per length ``rho_A``
     [kg/m].  Degrees of freedom ``w1, th1, …, wN, thN`` (deflection [m] and slope [rad] at
     the nodes, the clamp removed; ``wN`` is the tip); damping as in
-    :func:`structure_from_matrices`."""
+    [`structure_from_matrices`][absorber_jax.structure_from_matrices]."""
     if not isinstance(n_elements, int) or n_elements < 1:
         raise ValueError(f"cantilever_beam.n_elements must be a positive integer, got "
                          f"{n_elements!r}")

@@ -61,9 +61,9 @@ def test_non_periodic_response_is_flagged_and_measured():
     its stroboscopic statistics equal those of the exact piecewise-linear flow iterated from
     the same initial state (1000 periods after 400), and its largest Lyapunov exponent equals
     a Benettin estimate on the exact map (finite differences, renormalised each period) from
-    the window's start, to 10 % (measured 2 %).  It is positive (0.013 / s, 0.14 per period,
-    ~130 / (window T)): the torus born at the Neimark–Sacker point has broken into a weakly
-    chaotic attractor, and the map says so."""
+    the window's start, within the scatter of such estimates over a window of its length.
+    It is positive (0.013 / s, 0.14 per period, ~130 / (window T)): the torus born at the
+    Neimark–Sacker point has broken into a weakly chaotic attractor, and the map says so."""
     sysm, W = nlvib03(), 0.6
     m = aj.attractors(sysm, aj.Harmonic(amplitude=0.1, omega=W), samples=2, n_max=8,
                       max_periods=400, window=1000)
@@ -94,19 +94,26 @@ def test_non_periodic_response_is_flagged_and_measured():
         assert abs(ours.max() - ref.max()) < 0.1 * span
     # the designer's number: the largest |q2| over the window, finite and above the RMS
     assert np.all(np.isfinite(m.peak)) and np.all(m.peak > m.rms)
-    # the largest Lyapunov exponent of lane 0 against Benettin's on the exact map, over the
-    # same window and averaging (the last 750 of 1000 periods)
+    # the largest Lyapunov exponent of each lane against Benettin's on the exact map: a
+    # 750-period average (the library's window) of a chaotic orbit is a random draw, so the
+    # reference is the exact map's long-run average (5750 periods) and the tolerance three
+    # standard deviations of its own 750-period windows (measured 0.0017 / s, 15 % of the
+    # mean: the windows range 0.0092 .. 0.0149 / s)
     x = np.asarray(m.steady.state[0], dtype=float)
     v = np.ones_like(x) / np.sqrt(x.size)
     logs = []
-    for _ in range(1000):
+    for _ in range(6000):
         xn = ref03.period_map(x, W)
         dv = (ref03.period_map(x + 1e-7 * v, W) - xn) / 1e-7
         logs.append(np.log(np.linalg.norm(dv)))
         x, v = xn, dv / np.linalg.norm(dv)
-    lam = np.mean(logs[250:]) * W / (2 * np.pi)
-    print(f"largest Lyapunov exponent {m.lyapunov[0]:.5f} / s (exact map, Benettin {lam:.5f})")
-    assert lam > 0 and abs(m.lyapunov[0] - lam) < 0.1 * lam
+    logs = np.asarray(logs[250:]) * W / (2 * np.pi)
+    lam = logs.mean()
+    spread = np.std([logs[i:i + 750].mean() for i in range(0, logs.size - 749, 750)])
+    print(f"largest Lyapunov exponents {m.lyapunov} / s (exact map, Benettin {lam:.5f} "
+          f"+- {spread:.5f} over 750-period windows)")
+    assert lam > 5 * spread                              # positive beyond doubt: chaotic
+    assert np.all(np.abs(np.asarray(m.lyapunov) - lam) < 3 * spread)
     assert a.kind == "chaotic"
 
 

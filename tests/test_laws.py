@@ -42,7 +42,7 @@ def test_contact_law_formula_and_walls(law, formula):
 @pytest.mark.parametrize("cls", [aj.KelvinVoigt, aj.Hertz, aj.HuntCrossley])
 def test_non_adhesive_never_pulls(cls):
     law = cls(stiffness=400.0, damping=50.0, adhesive=False, eps=1e-7)
-    adh = cls(stiffness=400.0, damping=50.0, eps=1e-7)
+    adh = cls(stiffness=400.0, damping=50.0, eps=1e-7, adhesive=True)
     d = jnp.linspace(0, 1e-3, 50)[:, None]
     r = jnp.linspace(-20.0, 20.0, 41)[None, :]
     f = law.force(d, r)

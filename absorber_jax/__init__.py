@@ -1,6 +1,16 @@
 """absorber_jax: differentiable simulation, sweeps and design of impact and friction
 vibration absorbers.
 
+The two systems and seven laws are those of C. Mrad, K. Chehaibi, A. Nasr, R. Nasri,
+"Modeling effect on the performance of impact and friction vibration absorbers",
+*Mechanics & Industry* 18, 206 (2017), doi:10.1051/meca/2016040: an impact absorber
+(``ImpactAbsorber``: a mass in a clearance, with the Kelvin–Voigt, Hertz or Hunt–Crossley
+contact law) and a friction absorber (``FrictionAbsorber``: a mass tied by a spring and
+dashpot and sliding under a normal force, with the Coulomb, Stribeck, Dahl or LuGre friction
+law).  ``StructuralSystem`` attaches any number of such absorbers, tuned mass dampers and
+contacts to a multi-degree-of-freedom ``LinearStructure``.  The Mechanics page of the
+documentation gives the equations, units, the paper's tables and its corrections.
+
 Importing the package enables JAX's float64 mode (``jax_enable_x64``): the default path of
 every computation here is double precision.
 """
@@ -27,6 +37,7 @@ from ._design.base import band_objective, smooth_max  # noqa: E402
 from ._design.peak import BandPeak, exact_peak  # noqa: E402
 from ._design.robust import Coexisting, RobustPeak, robust_peak  # noqa: E402
 from ._design.tune import plot_tuning, tune, value_and_grad  # noqa: E402
+from ._integration.settings import Integrator  # noqa: E402
 from ._integration.simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._io.plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
 from ._laws.contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
@@ -79,6 +90,7 @@ from ._systems.structure import (  # noqa: E402
 __version__ = "0.1.0"
 
 __all__ = [
+    "Integrator",
     "AbstractAbsorberSystem", "AbstractContactLaw", "AbstractForcing", "AbstractFrictionLaw",
     "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",

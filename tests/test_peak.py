@@ -185,11 +185,10 @@ def test_exact_peak_bad_input():
         aj.objectives.RobustPeak(probes=0)
     with pytest.raises(ValueError, match="ExactPeak.peaks must be in"):
         aj.objectives.ExactPeak(n_freq=4, peaks=5)
-    # options that moved into the objective: the message names the new form
-    with pytest.raises(TypeError, match=r"objective=aj.objectives.ExactPeak\(stability_margin"):
-        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, stability_margin=0.1)
-    with pytest.raises(TypeError, match=r"starts=\(grid, n_best\)"):
-        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, n_starts=2)
+    with pytest.raises(ValueError, match="tune.method must be an aj.Shooting"):
+        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, method=aj.Marching())
+    with pytest.raises(TypeError, match="unexpected keyword argument 'n_frq'"):
+        aj.tune(system, ["k1"], (70.0, 130.0), amplitude=1.0, n_frq=8)
 
 
 def test_robust_objective_reports_the_coexisting_upper_branch():

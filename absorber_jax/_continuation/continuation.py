@@ -4,10 +4,10 @@ and branch switching at period doublings.
 Unknowns ``z = (x, p)``: the orbit's internal state on its Poincaré section (``t = 0 mod nT``
 at first, see Section below) divided by a state scale (``system.state_scale``, rescaled to the
 orbit as it grows) and the continuation parameter divided by ``|its start value|`` (by
-the bounds' larger magnitude in :func:`band_continuation`).  The residual is the shooting
+the bounds' larger magnitude in ``band_continuation``).  The residual is the shooting
 residual of the steady-state layer, ``Φ_{nT}(x; p) - x``
-(:func:`_integration.flow.period_map`, the same flow, tolerances and derivatives as
-:class:`Shooting`); its Jacobian ``[M - I, ∂Φ/∂p]`` comes from one forward-mode pass over
+(``_integration.flow.period_map``, the same flow, tolerances and derivatives as
+``Shooting``); its Jacobian ``[M - I, ∂Φ/∂p]`` comes from one forward-mode pass over
 ``n + 1`` directions.
 
 - **Predictor**: ``z + h t`` along the unit tangent ``t`` (null vector of the Jacobian,
@@ -18,25 +18,25 @@ residual of the steady-state layer, ``Φ_{nT}(x; p) - x``
   early where the residual has not halved over the last two steps.  The Jacobian of the last
   corrector iterate gives the next tangent and the Floquet multipliers (eigenvalues of
   ``M``) for free; the point's statistics and stability label are the point solve's
-  (:func:`_periodic.orbit._finish`).
+  (``_periodic.orbit._finish``).
 - **Section**: the orbit's state is taken on a Poincaré section where the absorbers fly
-  free, moved along the branch when a contact comes near it (:meth:`_Driver.resection`);
+  free, moved along the branch when a contact comes near it (``_Driver.resection``);
   the states reported are at ``t = 0``.
 - **Step control**: the step grows after quick corrections, shrinks after slow ones, and is
   halved when the corrector fails or the tangent turns by more than ``max_angle``.
 - **Bifurcations** between two accepted points, by sign changes of test functions: fold
   (the tangent's parameter component), period doubling (``Π(μ_i + 1)``: a real multiplier
   through -1), Neimark–Sacker (a complex pair crossing the unit circle).  Each is located by
-  the Illinois variant of regula falsi on the arclength, every evaluation a corrector solve
-  on the hyperplane through the predicted point.
+  the Illinois variant of regula falsi (M. Dowell, P. Jarratt, *BIT* 11 (1971) 168) on the
+  arclength, every evaluation a corrector solve on the hyperplane through the predicted point.
 - **Branch switching** at a period doubling: the period-``2n`` branch starts from the
   bifurcating orbit pushed along the eigenvector of the multiplier -1, on the hyperplane
   normal to it, and is followed until it leaves the bounds or rejoins the period-``n``
   branch (at the other end of a flip window).
 
-:func:`band_continuation` follows half-branches from several start values together, the
+``band_continuation`` follows half-branches from several start values together, the
 corrector solves of each round batched in one vmapped call (a generator per half-branch
-yields its corrector requests, :func:`_follow`).
+yields its corrector requests, ``_follow``).
 
 References: E. L. Allgower & K. Georg, *Introduction to Numerical Continuation Methods*
 (SIAM, 2003), ch. 2 and 6; Yu. A. Kuznetsov, *Elements of Applied Bifurcation Theory*
@@ -150,7 +150,7 @@ class PseudoArclength(eqx.Module):
 
 
 class Bifurcation(eqx.Module):
-    """A bifurcation found on a :class:`Branch`.
+    """A bifurcation found on a [`Branch`][absorber_jax.Branch].
 
     ``kind``: ``"fold"``, ``"period_doubling"`` or ``"neimark_sacker"``; ``value``: the
     located parameter value; ``amplitude``: the observable's amplitude there; ``state``:
@@ -171,6 +171,7 @@ class Bifurcation(eqx.Module):
     evaluations: int = eqx.field(static=True)
 
     def summary(self):
+        """The bifurcation as a JSON-ready dict (multipliers as ``[real, imag]`` pairs)."""
         return dict(kind=self.kind, value=float(self.value), amplitude=float(self.amplitude),
                     index=self.index, period_multiple=self.period_multiple,
                     located=self.located, evaluations=self.evaluations,
@@ -178,16 +179,17 @@ class Bifurcation(eqx.Module):
 
 
 class Branch(SteadyResults, eqx.Module):
-    """A branch of period-``n`` orbits from :func:`continuation`.
+    """A branch of period-``n`` orbits from [`continuation`][absorber_jax.continuation].
 
     ``values``: the parameter along the branch (in the order followed: it turns back at
-    folds); ``steady``: the point solve's :class:`SteadyState`, batched (its fields read
-    through: ``amplitude``, ``dof_amplitude``, ``stable``, ``multipliers``, ``status`` ...);
-    ``bifurcations``: the :class:`Bifurcation` s found, in branch order; ``termination``:
-    why the branch ended (``"bounds"``, ``"max_points"``, ``"rejoined"``, ``"closed"``,
-    ``"step_collapse"`` or ``"start_failed"``); ``steps``: corrector iterations per point
-    are ``iterations``.  The measured fields are NaN at failed points; ``signals``: the
-    names and SI units of what they measure (:mod:`_core.units`)."""
+    folds); ``steady``: the point solve's [`SteadyState`][absorber_jax.SteadyState], batched (its
+    fields read through: ``amplitude``, ``dof_amplitude``, ``stable``, ``multipliers``, ``status``
+    ...); ``bifurcations``: the [`Bifurcation`][absorber_jax.Bifurcation]s found, in branch order;
+    ``termination``: why the branch ended (``"bounds"``, ``"max_points"``, ``"rejoined"``,
+    ``"closed"``, ``"step_collapse"`` or ``"start_failed"``); ``steps``: corrector iterations per
+    point are ``iterations``.  The measured fields are NaN at failed points; ``signals``: the
+    names and SI units of what they measure, as the CSV headers, plot labels and
+    ``to_xarray`` attributes give them."""
 
     parameter: str = eqx.field(static=True)
     values: np.ndarray
@@ -208,6 +210,8 @@ class Branch(SteadyResults, eqx.Module):
         return [b for b in self.bifurcations if b.kind == kind]
 
     def summary(self):
+        """The branch as a JSON-ready dict: parameter, period, points, how it ended, the range
+        covered, stable and failed points, corrector iterations and the bifurcations."""
         st = np.asarray(self.stable)
         return dict(parameter=self.parameter, period_multiple=self.period_multiple,
                     points=len(self), termination=self.termination,
@@ -229,7 +233,7 @@ class Branch(SteadyResults, eqx.Module):
         tables.write_csv(path, tables.branch_columns(self))
 
     def to_dataframe(self):
-        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        """The rows of ``to_csv`` as a ``pandas.DataFrame`` (needs pandas)."""
         return tables.dataframe(tables.branch_columns(self), "Branch.to_dataframe")
 
     def to_xarray(self):
@@ -239,6 +243,7 @@ class Branch(SteadyResults, eqx.Module):
         return tables.branch_dataset(self)
 
     def to_json(self, path):
+        """Write ``summary()`` to the JSON file ``path``."""
         with open(path, "w") as fh:
             json.dump(self.summary(), fh, indent=2)
 
@@ -335,11 +340,11 @@ def _tangent(J, t_prev):
 @eqx.filter_jit
 def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     """Newton on ``[Φ(z) - x; t_prev·(z - z_pred)] = 0`` from ``z_pred``; returns the point,
-    the new tangent, the point's :class:`SteadyState` (its iterations included) and its
-    :class:`Section`.
+    the new tangent, the point's ``SteadyState`` (its iterations included) and its
+    ``Section``.
 
     Every Jacobian is integrated with steps controlled on the tangents too
-    (:func:`_integration.flow.accurate_tangents`): forward mode through steps chosen for the
+    (``_integration.flow.accurate_tangents``): forward mode through steps chosen for the
     state alone differentiates the discrete flow, whose Jacobian across a stiff contact is
     off by up to ~1e-3 in the multipliers; the tangent-controlled one costs about the same
     per evaluation (Kelvin–Voigt 2e4 scene at 44 rad/s: 21 vs 22 ms), so the last Newton
@@ -391,8 +396,8 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     # residual is nonlinear in the parameter even on a linear structure, and a residual just
     # below tol can mean a state error of tol / (1 - |μ|) on a lightly damped orbit; the
     # step leaves ~tol²).  The tangent and the multipliers are read off that Jacobian, a
-    # step of order tol away.  Before 2026-11-25 the step was taken with a Jacobian of its
-    # own (one more evaluation per point: 3 instead of 2 on most points of a branch).
+    # step of order tol away: a Jacobian of their own would cost one more evaluation per
+    # point (3 instead of 2 on most points of a branch).
     z = jnp.where(ok, z + newton_step(z, J, r), z)
     status = jnp.where(st != Status.SUCCESS, st,
                        jnp.where(bad, Status.NONFINITE,
@@ -490,7 +495,7 @@ class _Driver:
 
     def point(self, z, t, ss, sec):
         """A corrector's output as a branch point (numpy): ``xi`` its internal state on the
-        driver's section, ``x0`` at ``t = 0``, ``sec`` its :class:`Section`."""
+        driver's section, ``x0`` at ``t = 0``, ``sec`` its ``Section``."""
         ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
         z = np.asarray(z)
         return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, xi=z[:-1] * np.asarray(self.prob.s0),
@@ -500,7 +505,7 @@ class _Driver:
     def resection(self, point):
         """Move the branch's Poincaré section to where the orbit at ``point`` flies farthest
         from the contact walls, once the clearance at the current one has fallen below
-        ``RESECTION`` of that (a generator of one corrector request, see :func:`_follow`):
+        ``RESECTION`` of that (a generator of one corrector request, see ``_follow``):
         the point's state there, corrected at its parameter value, gives the unknowns and the
         tangent in the new section (oriented by the parameter's direction, so not near a
         fold: ``|t_p| >= RESECTION_TANGENT``).  Returns the point in the new unknowns, or
@@ -541,7 +546,7 @@ class _Driver:
     def locate(self, kind, a, h):
         """Illinois regula falsi on the arclength ``σ ∈ [0, h]`` from point ``a`` along its
         tangent for a zero of the test function of ``kind`` (a generator of corrector
-        requests, see :func:`_follow`)."""
+        requests, see ``_follow``)."""
         lo, hi = 0.0, h
         glo, ghi = _g(kind, a), None
         b = yield (self, a["z"] + h * a["t"], a["t"], False)
@@ -840,7 +845,7 @@ def _fill_starts(gaps, count):
 
 def _gaps(out, lo, hi):
     """The parts of ``(lo, hi)`` that no converged point of the half-branches ``out`` (as
-    :func:`_band_pass` returns them) reached, wider than ``GAP`` of the band, widest
+    ``_band_pass`` returns them) reached, wider than ``GAP`` of the band, widest
     first."""
     spans = sorted((min(v), max(v)) for v in
                    ([q["z"][-1] * float(drv.prob.pscale) for q in pts if q["ok"]]
@@ -921,7 +926,7 @@ def _branch(points, bifs, termination, drv, value0, system):
 def _first_orbit(drv, guesses, e):
     """The first orbit that Newton reaches from one of ``guesses`` (tried in turn; at least
     one) on the hyperplane normal to ``e``, or the last failed one; a generator of corrector
-    requests like :func:`_follow`."""
+    requests like ``_follow``."""
     for z0 in guesses:
         point = yield (drv, z0, e, True)
         if point["ok"]:
@@ -936,9 +941,9 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     (distances scaled by the spread of the samples; the first ``CLOSE_RETURN_SKIP`` samples
     are transient and left out; one guess per near passage; none where the march failed).
 
-    :func:`_periodic.marching.march` keeps the single closest period-1 return of a
+    ``_periodic.marching.march`` keeps the single closest period-1 return of a
     march that never settles, for ``steady_state``'s retry (march from rest, then shoot:
-    what :func:`continuation` falls back on); this one keeps several, of period ``n``,
+    what ``continuation`` falls back on); this one keeps several, of period ``n``,
     for all the starts of a band in one program, without marching's settling tests and
     Floquet solve (``steady_state`` there would compile a program of its own per call).
 
@@ -971,8 +976,8 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
 
 @eqx.filter_jit
 def _march_many(prob, s0, z0, periods, ndev=1):
-    """:meth:`_Problem.samples` vmapped over state scales and starting points, the lanes
-    split over ``ndev`` local devices (:func:`lanes_on_devices`)."""
+    """``_Problem.samples`` vmapped over state scales and starting points, the lanes
+    split over ``ndev`` local devices (``lanes_on_devices``)."""
     def one(prob, s, z):
         return dataclasses.replace(prob, s0=s).samples(z, periods)
 
@@ -982,11 +987,11 @@ def _march_many(prob, s0, z0, periods, ndev=1):
 def _follow(drv, first, rejoin, locate, bar, defer=False):
     """Follow the branch from the point ``first`` until it ends; a generator: it yields
     corrector requests ``(driver, z_pred, t_prev, patient)``, is sent the point solved for
-    each and returns ``(points, bifurcations, termination)`` (:func:`_run` serves it one
-    request at a time, :func:`_run_batched` many branches' requests in one vmapped call).
+    each and returns ``(points, bifurcations, termination)`` (``_run`` serves it one
+    request at a time, ``_run_batched`` many branches' requests in one vmapped call).
     ``defer``: the bifurcations to locate are returned as the arguments of
-    :func:`_bifurcation` (a copy of the driver as it was), for the caller to locate them
-    all together (:func:`band_continuation`), instead of one after the other here, the
+    ``_bifurcation`` (a copy of the driver as it was), for the caller to locate them
+    all together (``band_continuation``), instead of one after the other here, the
     branch's other steps waiting."""
     method = drv.method
     points = [(yield from drv.resection(drv.rescale(first))) if first["ok"] else first]
@@ -1065,9 +1070,9 @@ def _run(gen):
 
 @eqx.filter_jit
 def _corrector_many(prob, s0, section, z_pred, t_prev, patient, tol, newton_steps, ndev=1):
-    """:func:`_corrector` vmapped over the branches' state scales, sections, predictors,
+    """``_corrector`` vmapped over the branches' state scales, sections, predictors,
     hyperplanes and patience (the system, forcing and parameter scale shared), the lanes
-    split over ``ndev`` local devices (:func:`lanes_on_devices`)."""
+    split over ``ndev`` local devices (``lanes_on_devices``)."""
     def one(prob, s, j, z, t, pa):
         return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol, newton_steps,
                           pa)
@@ -1083,16 +1088,16 @@ def _run_batched(gens, prob, method, lanes=None):
     recompile; callers that batch several phases give them all the same ``lanes``: one
     compilation per batch size, ~5 s each on the hard-contact scenes).  With several local
     devices a batch of at least two lanes per device is split into equal parts, one per
-    device, in one SPMD program (:func:`lanes_on_devices`): the Kelvin–Voigt band of
-    scripts/benchmark_hard_contacts.py 75 -> 67.5 s on two CPU devices with a program per
-    device, 59 -> 47.8 s with one SPMD program and the corrector's Jacobian integration
-    traced once (its first 16-lane call 10.8 -> 6.6 s)."""
+    device, in one SPMD program (``lanes_on_devices``): the Kelvin–Voigt band of
+    scripts/benchmark_hard_contacts.py takes 47.8 s on two CPU devices against 59 s on one.
+    One SPMD program traces the corrector's Jacobian integration once, where a program per
+    device traces it per device (the first 16-lane call: 6.6 s against 10.8 s)."""
     lanes = len(gens) if lanes is None else lanes
     # the few branches snaking through folds, or locating bifurcations, go on for many more
     # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
     # on 60 rounds of 4 branches padded to 16 before the smaller batches): the batch is
     # cut to a quarter while no more than that is pending.  A half size in between cost
-    # more compilation than it saved (the Kelvin-Voigt band on 2 CPU devices, same session:
+    # more compilation than it saved (the Kelvin-Voigt band on 2 CPU devices, one machine:
     # sizes 16/8/4 65.6 s, 16/4 60.9 and 62.1 s, 16/2 65.0 s, 16 alone 77.4 s, the same
     # 606 points; the Hertz band 123.9 s and 123.1 s)
     sizes = [lanes] + ([lanes // 4] if lanes >= 8 else [])

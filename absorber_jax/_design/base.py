@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.legacy import moved
 from .._periodic.shooting import Shooting
 from .._periodic.steady import solve_point
 from .._systems.forcing import Harmonic
@@ -25,6 +26,25 @@ def smooth_max(a, softness=2e-3):
 
 
 def band_objective(amplitudes, objective="peak", softness=2e-3):
+    """A band objective of grid amplitudes: ``amplitudes`` [m] are steady-state amplitudes at
+    the frequencies of a grid (last axis), ``objective`` one of
+
+    - ``"peak"``: their smooth maximum, [`smooth_max`][absorber_jax.smooth_max] with
+      ``softness`` (a lower bound of the largest, within ``τ log F``, ``τ = softness · max``)
+      [m];
+    - ``"mean_square"``: ``mean(a²)`` [m²], an H2-like band average;
+    - ``"amplitude"``: the first amplitude (a single frequency) [m].
+
+    Differentiable with JAX, for design loops of your own over grid amplitudes.  The exact
+    and robust peaks are not functions of grid amplitudes (``ValueError``): use
+    [`exact_peak`][absorber_jax.exact_peak], [`robust_peak`][absorber_jax.robust_peak] or
+    ``tune(..., objective=...)``.
+
+    ```python
+    aj.band_objective(jnp.array([1e-3, 3e-3, 2e-3]), "peak")           # 2.993e-3
+    aj.band_objective(jnp.array([1e-3, 3e-3, 2e-3]), "mean_square")    # 4.667e-6
+    ```
+    """
     if objective == "peak":
         return smooth_max(amplitudes, softness)
     if objective == "mean_square":
@@ -76,6 +96,24 @@ def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
         return res.amplitude, system.to_internal(res.state), res.status, res.period_multiple
 
     return jax.vmap(one)(omegas, guesses)
+
+
+def design_method(method, where, legacy):
+    """The ``Shooting`` of a design entry point: ``method`` (default
+    ``Shooting(tol=1e-7, newton_steps=40)``) with the deprecated keywords ``tol`` and
+    ``newton_steps`` popped from ``legacy`` (warning)."""
+    if method is None:
+        method = Shooting(tol=1e-7, newton_steps=40)
+    if not isinstance(method, Shooting):
+        raise ValueError(f"{where}.method must be an aj.Shooting(...): design solves orbits by "
+                         f"shooting (gradients by implicit differentiation), got "
+                         f"{type(method).__name__}")
+    given = {k: legacy.pop(k) for k in ("tol", "newton_steps") if k in legacy}
+    if given:
+        moved(where, given, "method=aj.Shooting({})")
+        method = Shooting(**{"tol": method.tol, "newton_steps": method.newton_steps,
+                             **given})
+    return method
 
 
 def shooting_for_design(tol, newton_steps):

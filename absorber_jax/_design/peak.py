@@ -10,14 +10,16 @@
    constraints).
 2. **Locate.** For each local maximum the slope ``dA/dω`` (forward mode through the implicit
    orbit: no finite differences) is bracketed between the grid neighbours and its zero is
-   found by Illinois regula falsi, each trial orbit warm-started from the bracket end nearest
-   to it.  A maximum at a band edge with the slope pointing out of the band stays there.
+   found by Illinois regula falsi (M. Dowell, P. Jarratt, *BIT* 11 (1971) 168), each trial
+   orbit warm-started from the bracket end nearest to it.  A maximum at a band edge with the
+   slope pointing out of the band stays there.
 3. **Refined amplitude.** The extremes of the observable over the period are located between
    the samples by quintic Hermite interpolation of the observable and its first two time
    derivatives (from the vector field along the orbit).  ``A`` is then smooth in ``ω`` and
    ``θ`` (errors ~1e-12 of the amplitude on smooth orbits) instead of carrying the ~1e-7
    steps of parabolic interpolation, which would spoil the slope and its zero.
-4. **Gradient** by the envelope theorem: at an interior maximum ``∂A/∂ω = 0``, so
+4. **Gradient** by the envelope theorem (P. Milgrom, I. Segal, *Econometrica* 70 (2002)
+   583): at an interior maximum ``∂A/∂ω = 0``, so
    ``dP/dθ = ∂A/∂θ (ω*, θ)``, the amplitude differentiated at the fixed located frequency.
    No derivative of ``ω*`` is needed, and no frequency grid limits the value.
 
@@ -210,14 +212,19 @@ def locate(evaluate_slots, omegas, grid, kind, j, xtol, max_iter):
 
 
 class BandPeak(eqx.Module):
-    """The exact peak of a response over a band (:func:`exact_peak`).
+    """The exact peak of a response over a band ([`exact_peak`][absorber_jax.exact_peak]).
 
     Per slot (``peaks`` of them, ordered by frequency): ``omegas`` [rad/s], ``amplitudes``
-    (refined, see :mod:`_design.peak`), ``kinds`` (0 located, 1 band edge, 2 grid
-    point, 3 not bracketed: see ``KIND_NAMES``), ``located``, ``iterations`` (Illinois
-    steps), ``status``; ``gradients``: ``d amplitude / d parameter`` per slot and named
-    parameter (envelope theorem).  ``grid_omegas``/``grid_amplitude``/``grid_status``: the
-    coarse pass (the uniform grid, then the modal points)."""
+    (the observable's half peak-to-peak amplitude, its extremes located between the orbit's
+    samples by quintic Hermite interpolation, so smooth in ω and the parameters), ``kinds``
+    (0 located: the zero of ``dA/dω`` found; 1 band edge; 2 grid point; 3 not bracketed),
+    ``located``, ``iterations`` (steps of the Illinois variant of regula falsi: M. Dowell,
+    P. Jarratt, *BIT* 11 (1971) 168), ``status``; ``gradients``: ``d amplitude / d
+    parameter`` per slot and named parameter, by the envelope theorem (at a located peak
+    ``∂A/∂ω = 0``, so the amplitude is differentiated at the fixed located frequency:
+    P. Milgrom, I. Segal, *Econometrica* 70 (2002) 583).
+    ``grid_omegas``/``grid_amplitude``/``grid_status``: the coarse pass (the uniform grid,
+    then the modal points)."""
 
     omegas: np.ndarray
     amplitudes: np.ndarray
@@ -231,10 +238,12 @@ class BandPeak(eqx.Module):
 
     @property
     def located(self):
+        """Per slot: whether the peak was located (the zero of ``dA/dω`` found)."""
         return self.kinds == LOCATED
 
     @property
     def ok(self):
+        """Per slot: whether its orbit solves succeeded (``status == Status.SUCCESS``)."""
         return self.status == Status.SUCCESS
 
     @property
@@ -258,6 +267,8 @@ class BandPeak(eqx.Module):
         return {k: float(v[self.index]) for k, v in self.gradients.items()}
 
     def summary(self):
+        """A printable text: the band's peak and, per slot, its frequency, amplitude, kind,
+        iterations and status."""
         lines = []
         for j in range(len(self.omegas)):
             lines.append(f"  ω = {self.omegas[j]:.8g} rad/s  amplitude {self.amplitudes[j]:.8g}"
@@ -296,9 +307,9 @@ def design_system(system, names, reparam, u):
 @eqx.filter_jit
 def evaluate_batch(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
                    newton_steps):
-    """:func:`evaluate` at each of ``omegas`` from its guess (vmapped, design shooting with
+    """``evaluate`` at each of ``omegas`` from its guess (vmapped, design shooting with
     ``tol`` and ``newton_steps``) for the design ``u``: per frequency ``(A, [dA/dω,
-    dA/du...], internal state, status)``.  Compiled once per batch size: :func:`peak_core`'s
+    dA/du...], internal state, status)``.  Compiled once per batch size: ``peak_core``'s
     grid pass and its Illinois iterations share it."""
     method = shooting_for_design(tol, newton_steps)
 
@@ -311,7 +322,7 @@ def evaluate_batch(system, names, reparam, u, omegas, amplitude, guesses, cfg, t
 
 def evaluate_points(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
                     newton_steps, batch):
-    """:func:`evaluate_batch` over any number of frequencies, ``batch`` at a time (the last
+    """``evaluate_batch`` over any number of frequencies, ``batch`` at a time (the last
     call padded with its last point), so that every call runs the same compiled program;
     numpy outputs."""
     omegas = np.asarray(omegas, dtype=float)
@@ -335,12 +346,12 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
               peaks, xtol, max_iter, modes=True):
     """Slots of the band's peak at the design ``u`` (``reparam.forward(u)`` gives the named
     parameters; ``Reparam.plain``: ``u`` are the parameters themselves): the grid pass (the
-    ``omegas`` and, with ``modes``, the :func:`modal_seeds`), the located frequencies, the
+    ``omegas`` and, with ``modes``, the ``modal_seeds``), the located frequencies, the
     refined amplitudes and their gradients in ``u`` at the located frequencies (envelope
     theorem).  ``guesses``: warm starts on ``omegas`` (the seeds start from the method's
     guess).  The ``grid_*`` outputs list ``omegas`` first, then the seeds (numpy arrays).
 
-    One compiled program of ``peaks`` lanes (:func:`evaluate_batch`) serves both the grid,
+    One compiled program of ``peaks`` lanes (``evaluate_batch``) serves both the grid,
     evaluated ``peaks`` frequencies at a time, and every Illinois iteration (all slots at
     once): compiled as two programs (the grid's batch and the slots') inside one
     ``jax.jit``, the hardening oscillator of tests/test_peak.py took 55 s to compile, one

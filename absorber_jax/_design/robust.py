@@ -3,8 +3,8 @@ follows, and every stable coexisting response found by marching from many initia
 
 A design objective that sees one orbit per frequency (the one Newton converged to) misses a
 larger response that coexists with it (a hardening resonance's upper branch inside its
-hysteresis, Table 1's period-5 orbit at 55 rad/s).  :func:`robust_peak` adds an attractor
-map (:func:`absorber_jax.attractors`) at ``probes`` frequencies across the band: each stable
+hysteresis, Table 1's period-5 orbit at 55 rad/s).  ``robust_peak`` adds an attractor
+map (``absorber_jax.attractors``) at ``probes`` frequencies across the band: each stable
 periodic response found there is a candidate, and the robust value is the largest of the
 exact peak and those responses' amplitudes.  A period-1 candidate is polished by shooting
 from its marched state and differentiated there at its fixed frequency (its gradient is the
@@ -38,13 +38,13 @@ class Coexisting(eqx.Module):
 
 
 class RobustPeak(eqx.Module):
-    """:func:`robust_peak`'s result.
+    """[`robust_peak`][absorber_jax.robust_peak]'s result.
 
     ``value``/``omega``: the worst response over the band and its frequency; ``source``:
     ``"branch"`` (the exact peak of the response shooting follows) or ``"coexisting"`` (a
     response found by marching that is larger); ``gradient``: ``d value / d parameter``;
-    ``plain``: the exact peak alone (:class:`BandPeak`), what a plain objective reports;
-    ``coexisting``: every stable periodic response of the attractor maps."""
+    ``plain``: the exact peak alone ([`BandPeak`][absorber_jax.BandPeak]), what a plain objective
+    reports; ``coexisting``: every stable periodic response of the attractor maps."""
 
     value: float
     omega: float
@@ -54,6 +54,8 @@ class RobustPeak(eqx.Module):
     coexisting: tuple
 
     def summary(self):
+        """The result as a JSON-ready dict (value, frequency, source, the plain peak, the
+        gradient and the coexisting responses)."""
         return dict(value=self.value, omega=self.omega, source=self.source,
                     plain=self.plain.value, gradient=self.gradient,
                     coexisting=[dict(omega=c.omega, amplitude=c.amplitude,

@@ -25,6 +25,7 @@ whose status or period multiple changed, or that are unstable, are reported in
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -34,7 +35,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import check_scalar, require_x64
+from .._core.legacy import moved
 from .._core.status import Status
+from .._integration.settings import integrator_from
 from .._periodic.shooting import Shooting
 from .._periodic.steady import make_config
 from .._systems.forcing import Harmonic
@@ -44,6 +47,7 @@ from .base import (
     band_amplitudes,
     band_objective,
     check_design,
+    design_method,
 )
 from .objectives import SmoothPeak, as_objective
 from .peak import design_system, evaluate_points, exact_peak, peak_core
@@ -148,14 +152,13 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
     return seeds
 
 
-_MOVED = {"n_freq": "n_freq", "softness": "softness", "peaks": "peaks", "modes": "modes",
-          "stability_margin": "stability_margin", "probes": "probes",
-          "probe_samples": "probe_samples", "rounds": "rounds"}
+_OBJECTIVE_OPTIONS = ("n_freq", "softness", "peaks", "modes", "stability_margin", "probes",
+                      "probe_samples", "rounds")
 
 
 def tune(system, params, band, *, amplitude, objective=None, optimizer=None, steps=100,
-         bounds=None, starts=None, tol=1e-7, rtol=1e-10, atol=1e-10, newton_steps=40,
-         solver=None, progress=False, confirm=True, callback=None, **moved):
+         bounds=None, starts=None, method=None, integrator=None, progress=False, confirm=True,
+         callback=None, **legacy):
     """Tune absorber parameters to minimise the steady-state amplitude of the system's
     observable over a frequency band.
 
@@ -185,8 +188,13 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
       of their combinations is evaluated on the band in vmapped calls, the 3 best designs are
       each tuned and the best result returned (``history["starts"]``); a pair
       ``(grid, n_best)`` keeps ``n_best`` instead of 3.
-    - ``tol``, ``newton_steps``: shooting tolerance (scaled max-norm of the period-map
-      residual) and Newton iterations; ``rtol``, ``atol``, ``solver``: the integration.
+    - ``method``: the :class:`Shooting` that solves each orbit (its ``tol``, the scaled
+      max-norm of the period-map residual, and ``newton_steps``); default
+      ``Shooting(tol=1e-7, newton_steps=40)``.  Design evaluations never fall back to
+      marching (a branch switch would make the objective discontinuous): failed points are
+      reseeded by marching between evaluations instead.
+    - ``integrator``: an :class:`Integrator` (default: the design tolerances, rtol = atol =
+      1e-10).
     - ``progress``: a tqdm bar; ``callback(step, params, value)`` after each evaluation.
     - ``confirm``: re-check the curves before and after by marching (an independent method)
       on 12 frequencies and march from 8 initial states at the tuned design's peak: the
@@ -206,34 +214,47 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
     hist["best"]            # {"k1": ..., "c1": ...}
     ```
     """
-    if moved:
-        name = next(iter(moved))
-        if name in _MOVED:
-            raise TypeError(f"tune() got an unexpected keyword argument {name!r}: the "
-                            f"objective carries it, e.g. objective=aj.objectives.ExactPeak("
-                            f"{name}=...) (or SmoothPeak, MeanSquare, RobustPeak)")
-        if name in ("n_starts", "confirm_points", "confirm_samples"):
-            form = ("starts=(grid, n_best)" if name == "n_starts"
-                    else "confirm=(points, samples)")
-            raise TypeError(f"tune() got an unexpected keyword argument {name!r}: use {form}")
-        raise TypeError(f"tune() got an unexpected keyword argument {name!r}")
-    # "amplitude": the band (ω, ω) of one point, whose smooth maximum is its amplitude
     obj = SmoothPeak() if objective == "amplitude" else as_objective(objective, "tune")
-    opts = dict(n_freq=64, softness=2e-3, peaks=2, modes=True, stability_margin=None,
-                probes=8, probe_samples=16, rounds=3)
-    opts.update(obj.options())
+    obj = _legacy_objective(obj, legacy)
+    method = design_method(method, "tune", legacy)
+    integ = integrator_from(integrator, "design", "tune",
+                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
     n_starts = 3
+    if "n_starts" in legacy:
+        n_starts = legacy.pop("n_starts")
+        moved("tune", {"n_starts": n_starts}, "starts=(grid, {})")
     if isinstance(starts, tuple):
         if len(starts) != 2:
             raise ValueError("tune.starts must be a dict {name: values} or a pair "
                              "(dict, n_best)")
         starts, n_starts = starts
     points, samples = (12, 8) if confirm is True or confirm is False else confirm
+    if {"confirm_points", "confirm_samples"} & set(legacy):
+        points = legacy.pop("confirm_points", points)
+        samples = legacy.pop("confirm_samples", samples)
+        moved("tune", {"confirm_points": points, "confirm_samples": samples},
+              "confirm=(points, samples)")
+    if legacy:
+        raise TypeError(f"tune() got an unexpected keyword argument {next(iter(legacy))!r}")
+    opts = dict(n_freq=64, softness=2e-3, peaks=2, modes=True, stability_margin=None,
+                probes=8, probe_samples=16, rounds=3)
+    opts.update(obj.options())
     return _tune(system, params, band, amplitude=amplitude, objective=obj.kind,
-                 optimizer=optimizer, steps=steps, bounds=bounds, tol=tol, rtol=rtol,
-                 atol=atol, newton_steps=newton_steps, solver=solver, progress=progress,
-                 confirm=bool(confirm), confirm_points=points, confirm_samples=samples,
-                 starts=starts, n_starts=n_starts, callback=callback, **opts)
+                 optimizer=optimizer, steps=steps, bounds=bounds, tol=method.tol,
+                 rtol=integ.rtol, atol=integ.atol, newton_steps=method.newton_steps,
+                 solver=integ.solver, progress=progress, confirm=bool(confirm),
+                 confirm_points=points, confirm_samples=samples, starts=starts,
+                 n_starts=n_starts, callback=callback, **opts)
+
+
+def _legacy_objective(obj, legacy):
+    """``obj`` with the objective options given as deprecated keywords of ``tune``."""
+    given = {k: legacy.pop(k) for k in _OBJECTIVE_OPTIONS if k in legacy}
+    if not given:
+        return obj
+    moved("tune", given, f"objective=aj.objectives.{type(obj).__name__}({{}})")
+    names = {f.name for f in dataclasses.fields(obj)}
+    return dataclasses.replace(obj, **{k: v for k, v in given.items() if k in names})
 
 
 def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_freq, bounds,

@@ -42,8 +42,27 @@ IMPLICIT_SOLVERS = {
 # parts (5888 of 10000 steps rejected).
 UNSUPPORTED_SOLVERS = (diffrax.KenCarp3, diffrax.KenCarp4, diffrax.KenCarp5)
 SOLVERS = {**EXPLICIT_SOLVERS, **IMPLICIT_SOLVERS}
+"""The time integrators accepted by name wherever a solver is chosen (``solver="kvaerno5"``),
+mapped to their diffrax classes: the explicit ``"tsit5"`` (the default of non-stiff scenes),
+``"dopri5"``, ``"dopri8"``, ``"bosh3"`` and the implicit ``"kvaerno3"``, ``"kvaerno5"`` (for
+stiff contacts and friction bristles).  ``None`` or ``"auto"`` picks one
+by [`choose_solver`][absorber_jax.choose_solver]; a diffrax solver object is accepted too.
+
+```python
+sorted(aj.SOLVERS)    # ['bosh3', 'dopri5', 'dopri8', 'kvaerno3', 'kvaerno5', 'tsit5']
+```
+"""
 
 REGIME_NAMES = ("jammed", "partially gliding", "totally gliding")
+"""The names of the friction regimes, indexed by the ``regime`` code of a friction scene's
+[`Trajectory`][absorber_jax.Trajectory]: 0 jammed (the absorber slides less than 2 % of the
+forcing period ending at that instant), 1 partially gliding, 2 totally gliding (more than
+80 %).
+
+```python
+aj.REGIME_NAMES[int(traj.regime[-1])]    # e.g. "totally gliding"
+```
+"""
 
 
 # At tight tolerances (the steady-state layer's rtol <= TIGHT_RTOL on the scaled state) an
@@ -63,11 +82,17 @@ OSCILLATION_STIFFNESS_RATIO = 1.0e3
 def choose_solver(system: AbstractSystem, forcing: AbstractForcing, *,
                   rtol=None) -> str:
     """The automatic solver choice: ``"tsit5"`` unless the scene is stiff (the largest rate of
-    its linearised coupling times the forcing period exceeds ``STIFF_STEPS_PER_PERIOD``), then
-    ``"kvaerno5"`` -- except at tight tolerances (``rtol <= TIGHT_RTOL``, the steady-state
-    layer) where the stiffness comes with a fast oscillation both solvers must resolve (a
-    LuGre or Dahl bristle mode, ``system.oscillation_rate()``) and is not
-    ``OSCILLATION_STIFFNESS_RATIO`` times faster than it.  Returns the solver's name."""
+    its linearised coupling [1/s], ``system.stiffness_rate()``, times the forcing period
+    exceeds 2e4), then ``"kvaerno5"`` -- except at tight tolerances (``rtol <= 1e-7``, as the
+    steady-state solvers use) where the stiffness comes with a fast oscillation both solvers
+    must resolve (a LuGre or Dahl bristle mode, ``system.oscillation_rate()`` [rad/s]) and is
+    less than 1000 times faster than it.  Returns the solver's name.
+
+    ```python
+    system, forcing = aj.presets.impact("kelvin_voigt")
+    aj.choose_solver(system, forcing)    # "tsit5": a soft contact
+    ```
+    """
     lam, period = system.stiffness_rate(), forcing.period
     osc = system.oscillation_rate()
     if is_traced(lam) or is_traced(period) or is_traced(osc):
@@ -119,7 +144,7 @@ class Trajectory(eqx.Module):
     ``force_ratio`` (``|Fa|/|Fnl|`` with ``Fa = m2 Ẍ``, paper Figs. 13, 19) and ``regime``
     (0 jammed, 1 partially gliding, 2 totally gliding, judged over the forcing period ending at
     each instant); with ``energy=True``, ``work`` (done by the forcing) and ``dissipated``
-    [J]; ``status`` (see :class:`Status`), ``num_steps`` and ``solver``.
+    [J]; ``status`` (see [`Status`][absorber_jax.Status]), ``num_steps`` and ``solver``.
     """
 
     ts: Times
@@ -139,26 +164,33 @@ class Trajectory(eqx.Module):
 
     @property
     def x1(self):
+        """Primary displacement ``x1`` [m] at ``ts`` (two-mass systems: ``ys[..., 0]``)."""
         return self.ys[..., 0]
 
     @property
     def v1(self):
+        """Primary velocity ``v1`` [m/s] at ``ts`` (two-mass systems: ``ys[..., 1]``)."""
         return self.ys[..., 1]
 
     @property
     def x2(self):
+        """Absorber displacement ``x2`` [m] at ``ts`` (two-mass systems: ``ys[..., 2]``)."""
         return self.ys[..., 2]
 
     @property
     def v2(self):
+        """Absorber velocity ``v2`` [m/s] at ``ts`` (two-mass systems: ``ys[..., 3]``)."""
         return self.ys[..., 3]
 
     @property
     def z(self):
+        """The friction law's internal states at ``ts`` (the Dahl or LuGre bristle deflection
+        ``z`` [m]; an empty last axis for the other laws)."""
         return self.ys[..., 4:]
 
     @property
     def ok(self):
+        """Whether the integration succeeded (``status == Status.SUCCESS``)."""
         return self.status == Status.SUCCESS
 
     @property
@@ -181,6 +213,7 @@ class Trajectory(eqx.Module):
         return jax.vmap(self.system.observable)(s)
 
     def mechanical_energy(self):
+        """The system's mechanical energy (kinetic plus stored) [J] at ``ts``."""
         to_int = jax.vmap(self.system.to_internal)
         return jax.vmap(self.system.mechanical_energy)(to_int(self.ys))
 
@@ -194,7 +227,7 @@ class Trajectory(eqx.Module):
         write_csv(path, trajectory_columns(self))
 
     def to_dataframe(self):
-        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        """The rows of ``to_csv`` as a ``pandas.DataFrame`` (needs pandas)."""
         from .._core.tables import dataframe, trajectory_columns
 
         return dataframe(trajectory_columns(self), "Trajectory.to_dataframe")

@@ -2,10 +2,10 @@
 settle on, and the statistics a designer needs for each, periodic or not.
 
 At one forcing, ``K`` initial states (sampled in a box around rest, or given) are marched in
-one vmapped call (:class:`Marching`: the Poincaré samples ``t = kT`` until they repeat with
+one vmapped call (``Marching``: the Poincaré samples ``t = kT`` until they repeat with
 a period ``n <= n_max``).  Then every lane is integrated over a further window of
 ``window`` periods from where it ended, sampled ``S`` times per period (``S = SAMPLES``, or
-more for a system with contacts: see :func:`samples_per_period`): the largest
+more for a system with contacts: see ``samples_per_period``): the largest
 ``|observable|`` (``peak``), its RMS and half peak-to-peak over the window, the spread of
 the Poincaré samples (their largest distance from their mean, on the scaled state): zero
 for a periodic response, finite for a quasi-periodic or chaotic one, and the impacts per
@@ -59,7 +59,7 @@ SAMPLES = 64
 CONTACT_SAMPLES = 4
 MAX_SAMPLES = 2048
 # a non-periodic response is chaotic when its largest Lyapunov exponent exceeds this many
-# 1 / (window T) (module docstring)
+# 1 / (window T) (the module docstring says why)
 CHAOS_MARGIN = 10.0
 # stroboscopic samples of the observable repeating to this fraction of its amplitude make a
 # period
@@ -67,18 +67,23 @@ PERIOD_TOL = 1e-3
 
 
 class Attractor(eqx.Module):
-    """One response found by :func:`attractors`.
+    """One response found by [`attractors`][absorber_jax.attractors].
 
     ``periodic``: a period-``period_multiple`` orbit (else quasi-periodic or chaotic, or not
     settled within the marching budget); ``kind``: ``"periodic"``, ``"quasi-periodic"`` or
-    ``"chaotic"`` (by ``lyapunov``, module docstring; ``"not periodic"`` when the exponent
-    could not be computed); ``share``: fraction of the sampled initial states
+    ``"chaotic"`` (a non-periodic response is chaotic when ``lyapunov`` exceeds
+    ``10 / (window T)``, ``T`` the forcing period: a neutral direction, such as a floating
+    absorber or the angle on a torus, biases the finite-window estimate by about
+    ``ln(4) / (0.75 window T)``; ``"not periodic"`` when the exponent could not be
+    computed); ``share``: fraction of the sampled initial states
     that settled on it; ``amplitude``, ``rms``, ``peak``: the observable's half
     peak-to-peak, RMS and largest ``|value|`` over the window; ``spread``: the Poincaré
     samples' largest distance from their mean (scaled state; ~0 for an orbit);
     ``impacts``: contact closures per forcing period over the window (0 without contact);
-    ``lyapunov``: the largest Lyapunov exponent [1/s] over the window (module docstring;
-    the median over the members);
+    ``lyapunov``: the largest Lyapunov exponent [1/s] over the window (a tangent vector
+    carried period by period by the flow's derivative, renormalised each period, its log
+    growth averaged over the last three quarters of the window; > 0 chaotic, ≈ 0
+    quasi-periodic, ``ln|μ|max / nT < 0`` on a stable orbit; the median over the members);
     ``converged``: marching's periodicity test passed for one of its members (not for a
     floating absorber's neutral family, whose position drifts slowly: its ``stable`` is then
     False, not proven); ``stable``: the Floquet label of that member; ``multipliers``;
@@ -102,6 +107,7 @@ class Attractor(eqx.Module):
     members: np.ndarray
 
     def summary(self):
+        """The attractor as a JSON-ready dict of its scalar fields (``members`` as a count)."""
         return dict(kind=self.kind, periodic=self.periodic,
                     period_multiple=self.period_multiple,
                     converged=self.converged,
@@ -112,17 +118,19 @@ class Attractor(eqx.Module):
 
 
 class AttractorMap(eqx.Module):
-    """The responses reached from ``initial_states`` at one forcing (:func:`attractors`).
+    """The responses reached from ``initial_states`` at one forcing
+    ([`attractors`][absorber_jax.attractors]).
 
-    ``steady``: the marching result per initial state (batched :class:`SteadyState`; status
-    ``NOT_PERIODIC`` where the response never repeats); ``peak``, ``rms``, ``amplitude``,
-    ``spread``, ``impacts`` (per forcing period), ``lyapunov`` [1/s]: window statistics per
-    initial state;
+    ``steady``: the marching result per initial state (batched
+    [`SteadyState`][absorber_jax.SteadyState]; status ``NOT_PERIODIC`` where the response never
+    repeats); ``peak``, ``rms``, ``amplitude``, ``spread``, ``impacts`` (per forcing period),
+    ``lyapunov`` [1/s]: window statistics per initial state;
     ``section``: the observable at ``t = kT`` over the window (``(K, window)``: the
     stroboscopic samples a bifurcation diagram plots); ``label``: the attractor index of each
-    initial state; ``attractors``: the distinct :class:`Attractor` s, most frequent first;
-    ``signals``: the names and SI units of what the statistics measure (the observable, the
-    state components; :mod:`_core.units`)."""
+    initial state; ``attractors``: the distinct [`Attractor`][absorber_jax.Attractor]s, most
+    frequent first; ``signals``: the names and SI units of what the statistics measure (the
+    observable, the state components), as the CSV headers and ``to_xarray`` attributes give
+    them."""
 
     omega: float
     amplitude_F0: float
@@ -140,6 +148,8 @@ class AttractorMap(eqx.Module):
     signals: Signals = eqx.field(static=True, default=Signals())
 
     def summary(self):
+        """The map as a JSON-ready dict: forcing, number of initial states, and each
+        attractor's ``summary()``."""
         return dict(omega=float(self.omega), F0=float(self.amplitude_F0),
                     samples=int(self.label.shape[0]),
                     attractors=[a.summary() for a in self.attractors])
@@ -157,7 +167,7 @@ class AttractorMap(eqx.Module):
         tables.write_csv(path, tables.attractor_columns(self))
 
     def to_dataframe(self):
-        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        """The rows of ``to_csv`` as a ``pandas.DataFrame`` (needs pandas)."""
         return tables.dataframe(tables.attractor_columns(self), "AttractorMap.to_dataframe")
 
     def to_xarray(self):
@@ -366,10 +376,10 @@ def _group(per, amp, rms, rel_tol):
 
 
 def bifurcation_diagram(system, forcing, omegas, *, progress=False, **options):
-    """Stroboscopic bifurcation diagram: :func:`attractors` at every ``ω`` in ``omegas``
-    (same initial states and window resolution at each, the one the lowest frequency needs:
-    one compilation).  Returns the list of :class:`AttractorMap` s; plot with
-    :func:`absorber_jax.plot_bifurcation_diagram`."""
+    """Stroboscopic bifurcation diagram: [`attractors`][absorber_jax.attractors] at every ``ω`` in
+    ``omegas`` (same initial states and window resolution at each, the one the lowest frequency
+    needs: one compilation).  Returns the list of [`AttractorMap`][absorber_jax.AttractorMap]s;
+    plot with [`absorber_jax.plot_bifurcation_diagram`][absorber_jax.plot_bifurcation_diagram]."""
     from tqdm.auto import tqdm
 
     check_system_and_forcing(system, forcing, "bifurcation_diagram")

@@ -10,11 +10,11 @@ velocities by ``Lω``) so that one tolerance means the same thing for every comp
   arbitrary: the orbits form a family, ``∂Φ/∂s - I`` is singular (a Floquet multiplier at
   exactly 1) and the minimum-norm step converges to the member of the family nearest the
   guess.  A shooting solve that fails is retried by marching then shooting
-  (:func:`march_then_shoot`).  The monodromy matrix is the
-  Jacobian of ``Φ`` (:mod:`_integration.flow`); its eigenvalues are the Floquet
+  (``march_then_shoot``).  The monodromy matrix is the
+  Jacobian of ``Φ`` (``_integration.flow``); its eigenvalues are the Floquet
   multipliers.  Derivatives of a solved orbit with respect to parameters are implicit,
   ``ds/dθ = (I - M)^+ ∂Φ/∂θ`` (optimistix's ``ImplicitAdjoint`` for shooting,
-  :func:`_periodic.orbit.implicit_orbit` for marching), never taped
+  ``_periodic.orbit.implicit_orbit`` for marching), never taped
   through the Newton or marching loop; forward and reverse mode both work.
 - **Marching** integrates forward in chunks of periods and samples the Poincaré section
   ``t = kT``.  It stops when, for the smallest ``n <= n_max``, the samples repeat with period
@@ -82,7 +82,7 @@ def solve_point(system, forcing, method: AbstractSteadyMethod, cfg, *, guess=Non
     """One periodic orbit: ``method`` from ``guess`` (internal state; None or non-finite:
     the method's own start).  The one point solve that ``steady_state``,
     ``frequency_response`` and the design objectives share; vmappable (no retry here: a
-    single solve retries with :func:`march_then_shoot`, sweeps retry their failed points
+    single solve retries with ``march_then_shoot``, sweeps retry their failed points
     after the vmapped pass)."""
     scale = state_scale(system, forcing)
     start = method.initial_state(system, forcing)
@@ -93,7 +93,7 @@ def solve_point(system, forcing, method: AbstractSteadyMethod, cfg, *, guess=Non
 
 def resolve_method(method, where, **options):
     """A method object from ``method`` (``"shooting"``, ``"marching"`` or an
-    :class:`AbstractSteadyMethod`) and the entry point's option keywords (None = not
+    ``AbstractSteadyMethod``) and the entry point's option keywords (None = not
     given).  Options belong on the object when an object is given."""
     given = {k: v for k, v in options.items() if v is not None}
     if isinstance(method, AbstractSteadyMethod):

@@ -32,18 +32,19 @@ DOF_FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState) if f.name.sta
 
 class FrequencyResponse(SteadyResults, eqx.Module):
     """Steady-state results over ``omegas`` (and designs): the point solve's
-    :class:`SteadyState`, batched (``steady``), with the grid.
+    [`SteadyState`][absorber_jax.SteadyState], batched (``steady``), with the grid.
 
-    Every field of :class:`SteadyState` reads through (``amplitude``, ``stable``, ``status``,
-    ``dof_amplitude`` ...; ``states`` and ``multipliers`` for ``state`` and
+    Every field of [`SteadyState`][absorber_jax.SteadyState] reads through (``amplitude``,
+    ``stable``, ``status``, ``dof_amplitude`` ...; ``states`` and ``multipliers`` for ``state`` and
     ``multipliers``).  Arrays have shape ``(F,)`` for a plain sweep, or ``(P, F)`` when
     ``params`` gave ``P`` designs (per-degree-of-freedom fields add a last axis over
-    ``dof_names``).  ``status`` is per point (0 = success, see :class:`Status`); a failed point
-    never spoils the others.  ``direction`` is ``"parallel"`` (every point from its own linear
-    guess), ``"up"`` or ``"down"`` (each point seeded from its neighbour: follows a branch,
+    ``dof_names``).  ``status`` is per point (0 = success, see [`Status`][absorber_jax.Status]); a
+    failed point never spoils the others.  ``direction`` is ``"parallel"`` (every point from its own
+    linear guess), ``"up"`` or ``"down"`` (each point seeded from its neighbour: follows a branch,
     shows hysteresis).  The measured fields (``amplitude`` ... ``dof_harmonic``) are NaN at
     failed points.  ``signals``: the names and SI units of what the fields measure (the
-    observable, the absorber stroke, the degrees of freedom; :mod:`_core.units`)."""
+    observable, the absorber stroke, the degrees of freedom), as the CSV headers, plot labels
+    and ``to_xarray`` attributes give them."""
 
     omegas: np.ndarray
     steady: SteadyState
@@ -66,7 +67,7 @@ class FrequencyResponse(SteadyResults, eqx.Module):
         tables.write_csv(path, tables.frequency_response_columns(self))
 
     def to_dataframe(self):
-        """The rows of :meth:`to_csv` as a ``pandas.DataFrame`` (needs pandas)."""
+        """The rows of ``to_csv`` as a ``pandas.DataFrame`` (needs pandas)."""
         return tables.dataframe(tables.frequency_response_columns(self),
                                 "FrequencyResponse.to_dataframe")
 
@@ -99,8 +100,8 @@ RETRY_BATCH = 8
 # not run in lockstep at the pace of its slowest lane (measured on the friction absorber of
 # scripts/benchmark_sweep.py: 230 of 256 points converge in <= 5 steps, one takes 14).
 # 5 rather than 8 (measured on the three scenes of scripts/benchmark_sweep.py, 256 points):
-# Table 1 1.23 -> 1.04 s, Table 5 LuGre 9.1 -> 7.1 s, exact Coulomb 1.72 -> 1.65 s; a 5th
-# step is mostly Newton confirming a residual already within tolerance
+# Table 1 1.04 s against 1.23 s, Table 5 LuGre 7.1 against 9.1 s, exact Coulomb 1.65
+# against 1.72 s; a 5th step is mostly Newton confirming a residual already within tolerance
 FIRST_PASS_NEWTON = 5
 # chunks of at most this many points run every lane's whole Newton budget in the vmapped
 # pass: resuming a few stragglers of so few lanes would compile a second program (10-20 s)
@@ -217,7 +218,7 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
     44-state building of ``scripts/benchmark_structure.py``, quasi-Newton steps per point
     median 7 -> 5 (the neighbour's orbit alone is a few percent off there, the secant
     ~3x closer, and its Jacobian error about halves).  Large states' lanes run one at a
-    time (:func:`_one_lane_at_a_time`)."""
+    time (``_one_lane_at_a_time``)."""
 
     def lane(ws, pv, system, amplitude):
         sysp = _with(system, names, pv)
@@ -255,13 +256,13 @@ def _chained_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_fl
 
 def _one_lane_at_a_time(system):
     """Whether a chained sweep runs its lanes one at a time (``lane_by_lane``) rather than
-    vmapped in lockstep: for large states (``_flow.large_state``), whose Floquet
+    vmapped in lockstep: for large states (``_integration.flow.large_state``), whose Floquet
     monodromies run lane by lane anyway.  In lockstep every point of a chunk of lanes waits
     for the lane needing the most quasi-Newton steps (the 44-state building of
     ``scripts/benchmark_structure.py``: median 7, but up to the first pass's 20 in almost
-    every chunk); one at a time, a period integration cost 4 ms instead of 2.3 ms per
-    lane (2.4 ms since its stages are unrolled, see ``_unrolled``) but each lane takes only
-    its own steps, and lanes can be longer (``ALONE_CHAIN``
+    every chunk); one at a time, a period integration costs 2.4 ms per lane with its
+    stages unrolled (``_integration.unrolled``; 4 ms through diffrax's loop) against 2.3 ms
+    vmapped, but each lane takes only its own steps, and lanes can be longer (``ALONE_CHAIN``
     points, one lane per device and compiled call: fewer first points, each started from
     the linear guess with up to ~20 steps).  Measured there, 256 frequencies: 20.4 s
     vmapped (lanes of 4), 17.2 s one at a time in lanes of 16, 15.5 s in lanes of 64."""
@@ -280,7 +281,7 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
     """The points ``(W, PV)`` (design-major: ``per_design`` frequencies of each design, in
     order) solved in lanes of up to ``MAX_CHAIN`` consecutive frequencies of one design, so
     that every point but a lane's first starts from its neighbours' orbits and monodromies
-    (the chord's Jacobian; see :func:`_chained_chunk`); ``chunk_size`` lanes per compiled call
+    (the chord's Jacobian; see ``_chained_chunk``); ``chunk_size`` lanes per compiled call
     (large states: lanes of ``ALONE_CHAIN``, one per device and call).
     Returns the flat results (one per point)."""
     total = W.shape[0]

@@ -1,0 +1,103 @@
+"""Integration settings as one object, and the one table of their defaults.
+
+Every entry point that integrates takes ``integrator=Integrator(...)``: the diffrax solver,
+the PID step-size controller's tolerances and the step budget.  A field left ``None`` takes
+the default of the task at hand, from ``DEFAULTS``, the only place those defaults live:
+
+| task | entry points | ``rtol`` | ``atol`` | ``max_steps`` |
+|---|---|---|---|---|
+| ``"simulate"`` | ``simulate`` | 1e-8 | 1e-10 | 1 000 000 |
+| ``"periodic"`` | ``steady_state``, ``frequency_response``, ``attractors``, ``continuation``,
+``band_continuation`` | 1e-9 | 1e-9 | 200 000 |
+| ``"design"`` | ``tune``, ``value_and_grad``, ``exact_peak``, ``robust_peak`` | 1e-10 | 1e-10 | 200
+000 |
+
+Periodic solves integrate the state scaled by the orbit's own amplitude and velocity, so
+their ``atol`` is relative to those scales; ``simulate`` integrates the public state in
+SI units [m, m/s].  The design tolerances are tighter because gradients and the located
+peaks inherit the integration error.  ``max_steps`` is the step budget of one integration:
+the whole run in ``simulate``, one period map (``n`` forcing periods) in the periodic
+solvers.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+
+from .._core.checks import check_scalar
+
+
+class Integrator(eqx.Module):
+    """The time integration: ``solver``, tolerances and step budget (module docstring).
+
+    - ``solver``: ``None`` or ``"auto"`` (explicit Tsit5, or implicit Kvaerno5 when the
+      scene is stiff: :func:`choose_solver`), a name in :data:`SOLVERS`, or a diffrax
+      solver object.
+    - ``rtol``, ``atol``: the PID step-size controller's relative and absolute tolerances.
+    - ``max_steps``: the step budget of one integration.
+    - ``dt0``: the first step [s] (``None``: diffrax chooses).
+
+    ```python
+    import absorber_jax as aj
+    aj.Integrator(rtol=1e-10, atol=1e-12)            # solver chosen by the scene
+    aj.Integrator(solver="kvaerno5", max_steps=50_000)
+    ```
+    """
+
+    solver: object = eqx.field(static=True, default=None)
+    rtol: float | None = eqx.field(static=True, default=None)
+    atol: float | None = eqx.field(static=True, default=None)
+    max_steps: int | None = eqx.field(static=True, default=None)
+    dt0: float | None = eqx.field(static=True, default=None)
+
+    def __check_init__(self):
+        for name in ("rtol", "atol", "dt0"):
+            value = getattr(self, name)
+            if value is not None:
+                check_scalar("Integrator", name, value, lo=0.0, lo_open=True)
+        if self.max_steps is not None and (isinstance(self.max_steps, bool)
+                                           or not isinstance(self.max_steps, int)
+                                           or self.max_steps < 1):
+            raise ValueError(f"Integrator.max_steps must be a positive integer, got "
+                             f"{self.max_steps!r}")
+
+    def resolved(self, task: str) -> Integrator:
+        """This integrator with every ``None`` tolerance and budget replaced by the
+        default of ``task`` (``"simulate"``, ``"periodic"`` or ``"design"``)."""
+        base = DEFAULTS[task]
+        return Integrator(
+            solver=self.solver,
+            rtol=base.rtol if self.rtol is None else float(self.rtol),
+            atol=base.atol if self.atol is None else float(self.atol),
+            max_steps=base.max_steps if self.max_steps is None else int(self.max_steps),
+            dt0=self.dt0,
+        )
+
+
+FIELDS = ("solver", "rtol", "atol", "max_steps", "dt0")
+
+DEFAULTS = {
+    "simulate": Integrator(rtol=1e-8, atol=1e-10, max_steps=1_000_000),
+    "periodic": Integrator(rtol=1e-9, atol=1e-9, max_steps=200_000),
+    "design": Integrator(rtol=1e-10, atol=1e-10, max_steps=200_000),
+}
+
+
+def integrator_from(integrator, task, where, legacy):
+    """The resolved ``Integrator`` of an entry point: ``integrator`` (or a default
+    one) with the deprecated flat keywords ``legacy`` (``solver``, ``rtol``, ``atol``,
+    ``max_steps``, ``dt0``; ``None`` = not given) filled in, warning for each."""
+    from .._core.legacy import moved
+
+    given = {k: v for k, v in legacy.items() if v is not None}
+    if integrator is None:
+        integrator = Integrator()
+    elif not isinstance(integrator, Integrator):
+        raise ValueError(f"{where}.integrator must be an aj.Integrator(...), got "
+                         f"{type(integrator).__name__}")
+    if given:
+        moved(where, given, "integrator=aj.Integrator({})")
+        fields = {f: getattr(integrator, f) for f in FIELDS}
+        fields.update(given)
+        integrator = Integrator(**fields)
+    return integrator.resolved(task)

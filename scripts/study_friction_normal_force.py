@@ -53,9 +53,9 @@ def main(out, quick):
 
     steps = 10 if quick else 100
     t = time.perf_counter()
-    tuned, hist = aj.tune(base, ["N"], BAND, amplitude=F0, steps=steps,
+    tuned, hist = aj.tune(base, {"N": (0.01, 200.0)}, BAND, amplitude=F0, steps=steps,
                           objective=aj.objectives.SmoothPeak(n_freq=len(om)),
-                          bounds={"N": (0.01, 200.0)}, progress=True, confirm=False,
+                          progress=True, confirm=False,
                           optimizer=optax.adam(optax.cosine_decay_schedule(0.05, steps, 0.05)))
     tune_s = time.perf_counter() - t
     n_opt = hist["best"]["N"]

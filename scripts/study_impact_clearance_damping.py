@@ -25,9 +25,9 @@ def main(out, quick):
     c1s = np.geomspace(2.0, 80.0, 5 if quick else 12)
     G, C = np.meshgrid(gaps, c1s, indexing="ij")
     # the grid is the global starts' grid: evaluated once, in vmapped calls, inside tune
-    tuned, hist = aj.tune(system, ["gap", "c1"], band, amplitude=2.0, steps=6 if quick else 30,
+    tuned, hist = aj.tune(system, {"gap": (5e-5, 5e-3), "c1": (0.5, 200.0)}, band,
+                          amplitude=2.0, steps=6 if quick else 30,
                           objective=aj.objectives.ExactPeak(n_freq=len(om)),
-                          bounds={"gap": (5e-5, 5e-3), "c1": (0.5, 200.0)},
                           starts=({"gap": gaps, "c1": c1s}, 1 if quick else 3),
                           progress=True, confirm=(8, 8) if not quick else False)
     peaks = np.asarray(hist["starts"]["grid_peak"]).reshape(G.shape)

@@ -128,9 +128,9 @@ def test_tmd_tuning_reaches_the_h_infinity_optimum(mu):
 def test_friction_normal_force_optimum_is_interior():
     base = friction_system(aj.Coulomb(mu=0.5, eps=1e-3), N=2.0)
     band = (70.0, 120.0)
-    tuned, hist = aj.tune(base, ["N"], band, amplitude=10.0, steps=15,
+    tuned, hist = aj.tune(base, {"N": (0.01, 200.0)}, band, amplitude=10.0, steps=15,
                           objective=aj.objectives.SmoothPeak(n_freq=24),
-                          bounds={"N": (0.01, 200.0)}, confirm=False)
+                          confirm=False)
     N_opt = hist["best"]["N"]
     assert 0.05 < N_opt < 100.0
     om = np.linspace(*band, 24)
@@ -186,7 +186,7 @@ def test_tune_bad_input():
     with pytest.raises(ValueError, match=r"band\[1\] must be in"):
         aj.tune(system, ["k1"], (40, 30), amplitude=2.0)
     with pytest.raises(ValueError, match="strictly inside bounds"):
-        aj.tune(system, ["k1"], (30, 40), amplitude=2.0, bounds={"k1": (500.0, 900.0)})
+        aj.tune(system, {"k1": (500.0, 900.0)}, (30, 40), amplitude=2.0)
 
 
 @pytest.mark.slow

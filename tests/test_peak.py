@@ -237,10 +237,10 @@ def test_robust_tuning_removes_the_coexisting_upper_branch():
     from test_continuation import HARD, hardening
 
     c, F0 = HARD["c"], HARD["F0"]
-    tuned, hist = aj.tune(hardening(), ["contact1.gap"], (1.1, 1.2), amplitude=F0,
+    tuned, hist = aj.tune(hardening(), {"contact1.gap": (0.05, 2.0)}, (1.1, 1.2), amplitude=F0,
                           objective=aj.objectives.RobustPeak(n_freq=8, probes=3,
                                                                 probe_samples=12, rounds=2),
-                          steps=6, bounds={"contact1.gap": (0.05, 2.0)},
+                          steps=6,
                           confirm=False)
     first, last = hist["rounds"][0], hist["rounds"][-1]
     linear = F0 / abs(1 - 1.1**2 + 1j * c * 1.1)

@@ -69,6 +69,8 @@ from .._integration.flow import (
     period_map,
     state_scale,
 )
+from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
+from .._integration.settings import integrator_from
 from .._periodic.orbit import SAMPLES_PER_PERIOD, SteadyResults, SteadyState, _finish, read_through
 from .._periodic.shooting import Shooting
 from .._periodic.steady import check_system_and_forcing, steady_state
@@ -590,8 +592,8 @@ class _Driver:
 
 def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                  parameter: str = "omega", *, bounds, method: PseudoArclength | None = None,
-                 n: int = 1, direction: str = "up", start=None, guess=None, solver=None, rtol=1e-9,
-                 atol=1e-9, max_steps=200_000, locate=True, progress=False) -> Branch:
+                 n: int = 1, direction: str = "up", start=None, guess=None, integrator=None,
+                 locate=True, progress=False, **legacy) -> Branch:
     """Follow a branch of period-``n`` orbits of ``system`` under ``forcing`` in
     ``parameter`` by pseudo-arclength continuation (see the module docstring), through
     folds, with the bifurcations on it detected and located.
@@ -613,9 +615,9 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
       :func:`steady_state` with its retries where that fails), or a period-doubling
       :class:`Bifurcation` of a branch of this system in this parameter: the period-``2n``
       branch born there is followed (branch switching); ``direction`` is then ignored.
-    - ``solver``, ``rtol``, ``atol``, ``max_steps``: the integrator (as in
-      :func:`steady_state`; chosen at the lowest frequency of the bounds when continuing in
-      ``omega``).
+    - ``integrator``: an ``Integrator`` (default: the periodic tolerances, rtol = atol =
+      1e-9 on the scaled state; the solver is chosen at the lowest frequency of the bounds
+      when continuing in ``omega``).
     - ``locate``: locate each bifurcation (a few corrector solves each); otherwise they are
       reported at the nearer branch point.
     - ``progress``: a tqdm bar over the branch points.
@@ -644,6 +646,12 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                          f"bounds ({lo:g}, {hi:g})")
     check_state("guess", guess, system.num_states)
 
+    integ = integrator_from(integrator, "periodic", "continuation",
+                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    if legacy:
+        raise TypeError(f"continuation() got an unexpected keyword argument "
+                        f"{next(iter(legacy))!r}")
+    solver, rtol, atol, max_steps = integ.solver, integ.rtol, integ.atol, integ.max_steps
     cfg = _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps)
     s0 = state_scale(system, forcing)
     pscale = abs(value0) if value0 != 0 else max(abs(lo), abs(hi))
@@ -664,8 +672,7 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
         e = _axis(prob, direction)
         first = drv.solve(np.append(np.asarray(g) / np.asarray(s0), p0), e, True)
         if not first["ok"]:
-            ss = steady_state(system, forcing, method=shooting, guess=guess, solver=solver,
-                              rtol=rtol, atol=atol, max_steps=max_steps)
+            ss = steady_state(system, forcing, method=shooting, guess=guess, integrator=integ)
             x0 = np.asarray(system.to_internal(ss.state)) / np.asarray(s0)
             if int(ss.status) != Status.SUCCESS:
                 first = dict(ss=jax.tree_util.tree_map(np.asarray, ss), ok=False)
@@ -683,8 +690,8 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
 def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                       parameter: str = "omega", *,
                       bounds, starts=8, method: PseudoArclength | None = None, n: int = 1,
-                      fill: int = 2, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000,
-                      locate=True, progress=False) -> tuple:
+                      fill: int = 2, integrator=None, locate=True, progress=False,
+                      **legacy) -> tuple:
     """Cover a parameter band with branches of period-``n`` orbits followed from several
     start values at once: every start up and down, each half-branch bounded by the
     neighbouring start values (so every cell between two starts is followed from both
@@ -698,7 +705,8 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     orbits for little more than the price of one (that scene: 8 Jacobians in 0.059 s against
     0.031 s for one).
 
-    **Arguments** as :func:`continuation`, and
+    **Arguments** as ``continuation`` (``bounds``, ``method``, ``n``, ``integrator``,
+    ``locate``, ``progress``), and
 
     - ``starts``: the number of start values (the centres of that many equal cells of the
       bounds) or the start values themselves (inside the bounds).  The first orbit at each
@@ -737,6 +745,12 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
             raise ValueError(f"starts must lie inside bounds ({lo:g}, {hi:g}), got {starts!r}")
     if not isinstance(fill, int) or isinstance(fill, bool) or fill < 0:
         raise ValueError(f"fill must be a non-negative integer, got {fill!r}")
+    integ = integrator_from(integrator, "periodic", "band_continuation",
+                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    if legacy:
+        raise TypeError(f"band_continuation() got an unexpected keyword argument "
+                        f"{next(iter(legacy))!r}")
+    solver, rtol, atol, max_steps = integ.solver, integ.rtol, integ.atol, integ.max_steps
     cfg = _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps)
     base = _Problem(system=system, forcing=forcing, s0=state_scale(system, forcing),
                     pscale=jnp.asarray(max(abs(lo), abs(hi))), cfg=cfg, parameter=parameter,

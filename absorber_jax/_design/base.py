@@ -4,6 +4,8 @@ the vmapped band amplitudes (shooting, forward-mode differentiable)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -98,12 +100,29 @@ def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
     return jax.vmap(one)(omegas, guesses)
 
 
-def design_method(method, where, legacy):
+def legacy_objective(obj, where, legacy, options=("n_freq", "softness", "peaks", "modes",
+                                                  "stability_margin", "probes", "probe_samples",
+                                                  "rounds", "xtol", "max_iter", "spread", "seed",
+                                                  "max_periods"), renamed=None):
+    """``obj`` with the objective options given as deprecated keywords of ``where`` popped
+    from ``legacy`` and set on it (a ``DeprecationWarning`` names the new form);
+    ``renamed`` maps a former keyword to the objective's field."""
+    renamed = renamed or {}
+    given = {k: legacy.pop(k) for k in (*options, *renamed) if k in legacy}
+    if not given:
+        return obj
+    moved(where, given, f"objective=aj.objectives.{type(obj).__name__}({{}})")
+    names = {f.name for f in dataclasses.fields(obj)}
+    values = {renamed.get(k, k): v for k, v in given.items()}
+    return dataclasses.replace(obj, **{k: v for k, v in values.items() if k in names})
+
+
+def design_method(method, where, legacy, default_tol=1e-7):
     """The ``Shooting`` of a design entry point: ``method`` (default
     ``Shooting(tol=1e-7, newton_steps=40)``) with the deprecated keywords ``tol`` and
     ``newton_steps`` popped from ``legacy`` (warning)."""
     if method is None:
-        method = Shooting(tol=1e-7, newton_steps=40)
+        method = Shooting(tol=default_tol, newton_steps=40)
     if not isinstance(method, Shooting):
         raise ValueError(f"{where}.method must be an aj.Shooting(...): design solves orbits by "
                          f"shooting (gradients by implicit differentiation), got "

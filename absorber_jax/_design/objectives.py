@@ -69,6 +69,8 @@ class ExactPeak(AbstractObjective):
       their half-power points, so that a resonance narrower than the grid is not missed.
     - ``stability_margin``: a design whose orbit at a located peak has a Floquet multiplier
       of modulus above ``1 - stability_margin`` is infeasible (``None``: no margin).
+    - ``xtol``, ``max_iter``: relative tolerance on a located frequency and the most
+      Illinois steps per peak.
     """
 
     kind: ClassVar[str] = "exact_peak"
@@ -76,6 +78,8 @@ class ExactPeak(AbstractObjective):
     peaks: int = 2
     modes: bool = True
     stability_margin: float | None = None
+    xtol: float = 1e-10
+    max_iter: int = 40
 
     def __check_init__(self):
         _positive_int(type(self).__name__, "n_freq", self.n_freq, 3)
@@ -98,17 +102,24 @@ class RobustPeak(AbstractObjective):
     at ``probes`` frequencies (``probe_samples`` initial states each).  A period-1 response
     larger than what the objective sees is followed by shooting as the design moves (one
     more minimax constraint); the maps run again at each result, and a new larger response
-    starts another of at most ``rounds`` minimax rounds.  ``n_freq``, ``peaks``, ``modes``,
-    ``stability_margin``: as ``ExactPeak``."""
+    starts another of at most ``rounds`` minimax rounds.  ``spread``, ``seed``,
+    ``max_periods``: the maps' initial states (uniform in a box of ``±spread`` state scales
+    around rest) and marching budget [forcing periods].  ``n_freq``, ``peaks``, ``modes``,
+    ``stability_margin``, ``xtol``, ``max_iter``: as ``ExactPeak``."""
 
     kind: ClassVar[str] = "robust_peak"
     n_freq: int = 32
     peaks: int = 2
     modes: bool = True
     stability_margin: float | None = None
+    xtol: float = 1e-10
+    max_iter: int = 40
     probes: int = 8
     probe_samples: int = 16
     rounds: int = 3
+    spread: float = 3.0
+    seed: int = 0
+    max_periods: int = 2000
 
     def __check_init__(self):
         ExactPeak.__check_init__(self)

@@ -37,10 +37,12 @@ import numpy as np
 
 from .._core.status import Status
 from .._integration.flow import state_scale
+from .._integration.settings import integrator_from
 from .._periodic.orbit import sample_orbit
 from .._periodic.steady import solve_point
 from .._systems.forcing import Harmonic, at_frequency, sweep_shape
-from .base import Reparam, check_design, shooting_for_design
+from .base import Reparam, check_design, design_method, legacy_objective, shooting_for_design
+from .objectives import ExactPeak
 
 # kinds of a peak slot
 LOCATED, EDGE, FILLER, UNBRACKETED = 0, 1, 2, 3
@@ -384,21 +386,19 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
                 grid_states=states, grid_status=status, grid_jac=grads[:, 1:])
 
 
-def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e-8,
-               rtol=1e-10, atol=1e-10, newton_steps=40, solver=None, xtol=1e-10,
-               max_iter=40, modes=True) -> BandPeak:
+def exact_peak(system, band, *, amplitude, params=(), objective=None, method=None,
+               integrator=None, **legacy) -> BandPeak:
     """The largest steady-state amplitude of ``system.observable`` over ``band = (lo, hi)``
-    [rad/s] under a harmonic force of ``amplitude`` F0 [N] (or under a periodic forcing
-    given as ``amplitude``, at its ``with_omega(ω)``), located exactly (module docstring),
-    with its gradient in the named ``params`` (envelope theorem).
+    [rad/s] under a harmonic force of amplitude ``amplitude`` F0 [N] (or a periodic forcing
+    given as ``amplitude``, swept through its ``with_omega(ω)``), located exactly, with its
+    gradient in the named ``params`` by the envelope theorem (``BandPeak``).
 
-    ``n_freq``: points of the coarse grid that brackets the peaks (enough to separate them);
-    ``peaks``: slots located (2 for a tuned mass damper's two peaks); ``modes``: add grid
-    points at the lightly damped modes of the linearisation at rest and their half-power
-    points (:func:`modal_seeds`: ``3 * num_states // 2`` points), so that a resonance
-    narrower than the grid spacing is not missed; ``xtol``: relative
-    tolerance on the located frequencies; ``tol``, ``rtol``, ``atol``, ``newton_steps``,
-    ``solver``: shooting and integrator settings.
+    - ``objective``: an ``objectives.ExactPeak`` carrying the grid and the location options
+      (``n_freq`` points of the coarse grid that brackets the peaks, ``peaks`` slots, ``modes``:
+      grid points at the lightly damped modes and their half-power points, ``xtol``,
+      ``max_iter``); default ``ExactPeak()``.
+    - ``method``: the ``Shooting`` of each orbit, default ``Shooting(tol=1e-8,
+      newton_steps=40)``; ``integrator``: default the design tolerances (1e-10).
 
     ```python
     import absorber_jax as aj
@@ -407,6 +407,26 @@ def exact_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, tol=1e
     pk.value, pk.omega, pk.gradient
     ```
     """
+    obj = ExactPeak() if objective is None else objective
+    if not isinstance(obj, ExactPeak):
+        raise ValueError(f"exact_peak.objective must be an aj.objectives.ExactPeak(...), got "
+                         f"{type(obj).__name__}")
+    obj = legacy_objective(obj, "exact_peak", legacy)
+    method = design_method(method, "exact_peak", legacy, default_tol=1e-8)
+    integ = integrator_from(integrator, "design", "exact_peak",
+                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
+    if legacy:
+        raise TypeError(f"exact_peak() got an unexpected keyword argument "
+                        f"{next(iter(legacy))!r}")
+    return exact_peak_of(system, band, amplitude=amplitude, params=params, n_freq=obj.n_freq,
+                         peaks=obj.peaks, tol=method.tol, rtol=integ.rtol, atol=integ.atol,
+                         newton_steps=method.newton_steps, solver=integ.solver,
+                         xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes)
+
+
+def exact_peak_of(system, band, *, amplitude, params, n_freq, peaks, tol, rtol, atol,
+                  newton_steps, solver, xtol, max_iter, modes) -> BandPeak:
+    """``exact_peak`` with its options unpacked."""
     from .._core.checks import check_scalar, require_x64
     from .._periodic.steady import check_system_and_forcing, make_config
     from .._systems.params import get_param

@@ -19,9 +19,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.status import Status
+from .._integration.settings import Integrator, integrator_from
+from .._periodic.attractors import attractors
+from .._periodic.marching import Marching
+from .._periodic.steady import make_config
 from .._systems.forcing import at_frequency, sweep_shape
-from .base import Reparam
-from .peak import evaluate_points, exact_peak
+from .._systems.params import get_param
+from .base import Reparam, design_method, legacy_objective
+from .objectives import RobustPeak as RobustPeakObjective
+from .peak import evaluate_points, exact_peak_of
 
 
 class Coexisting(eqx.Module):
@@ -67,37 +73,62 @@ def stable_responses(system, band, amplitude, *, probes, samples, spread=3.0, se
                      max_periods=2000, solver=None, rtol=1e-10, atol=1e-10):
     """``[(ω, attractor)]``: the stable periodic responses of attractor maps at ``probes``
     frequencies uniform over ``band``."""
-    from .._periodic.attractors import attractors
 
     found = []
     for w in np.linspace(float(band[0]), float(band[1]), probes):
         amap = attractors(system, at_frequency(amplitude, float(w)),
-                          samples=samples, spread=spread, seed=seed, max_periods=max_periods,
-                          solver=solver, rtol=rtol, atol=atol)
+                          samples=samples, spread=spread, seed=seed,
+                          method=Marching(n_max=8, max_periods=max_periods, tol=1e-6),
+                          integrator=Integrator(solver=solver, rtol=rtol, atol=atol))
         for att in amap.attractors:
             if att.periodic and att.converged and att.stable:
                 found.append((float(w), att))
     return found
 
 
-def robust_peak(system, band, *, amplitude, params=(), n_freq=32, peaks=2, probes=8,
-                samples=16, spread=3.0, seed=0, max_periods=2000, tol=1e-7, rtol=1e-10,
-                atol=1e-10, newton_steps=40, solver=None) -> RobustPeak:
-    """The worst stable response over ``band`` (module docstring), with its gradient in
-    ``params``.
+def robust_peak(system, band, *, amplitude, params=(), objective=None, method=None,
+                integrator=None, **legacy) -> RobustPeak:
+    """The worst stable response over ``band`` [rad/s] (``RobustPeak``): the exact peak of the
+    branch shooting follows (``exact_peak``) or a larger stable response that attractor maps
+    at ``probes`` frequencies find coexisting with it, with its gradient in ``params`` (for
+    a period-1 coexisting response, differentiated on its orbit at its frequency).
 
-    ``n_freq``, ``peaks``: the exact peak's grid and slots (:func:`exact_peak`); ``probes``:
-    frequencies of the attractor maps, uniform over the band; ``samples``, ``spread``,
-    ``seed``, ``max_periods``: their initial states and marching budget
-    (:func:`attractors`)."""
-    from .._periodic.steady import make_config
-    from .._systems.params import get_param
+    - ``objective``: an ``objectives.RobustPeak`` carrying the exact peak's options
+      (``n_freq``, ``peaks``, ``modes``, ``xtol``, ``max_iter``) and the maps' (``probes``,
+      ``probe_samples`` initial states each, uniform in a box of ``±spread`` state scales,
+      ``seed``, ``max_periods`` of marching); default ``RobustPeak()``.
+    - ``method``: the ``Shooting`` of each orbit, default ``Shooting(tol=1e-7,
+      newton_steps=40)``; ``integrator``: default the design tolerances (1e-10).
+    """
+    obj = RobustPeakObjective() if objective is None else objective
+    if not isinstance(obj, RobustPeakObjective):
+        raise ValueError(f"robust_peak.objective must be an aj.objectives.RobustPeak(...), got "
+                         f"{type(obj).__name__}")
+    obj = legacy_objective(obj, "robust_peak", legacy, renamed={"samples": "probe_samples"})
+    method = design_method(method, "robust_peak", legacy)
+    integ = integrator_from(integrator, "design", "robust_peak",
+                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
+    if legacy:
+        raise TypeError(f"robust_peak() got an unexpected keyword argument "
+                        f"{next(iter(legacy))!r}")
+    return robust_peak_of(system, band, amplitude=amplitude, params=params, n_freq=obj.n_freq,
+                          peaks=obj.peaks, probes=obj.probes, samples=obj.probe_samples,
+                          spread=obj.spread, seed=obj.seed, max_periods=obj.max_periods,
+                          tol=method.tol, rtol=integ.rtol, atol=integ.atol,
+                          newton_steps=method.newton_steps, solver=integ.solver,
+                          xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes)
 
+
+def robust_peak_of(system, band, *, amplitude, params, n_freq, peaks, probes, samples, spread,
+                   seed, max_periods, tol, rtol, atol, newton_steps, solver, xtol=1e-10,
+                   max_iter=40, modes=True) -> RobustPeak:
+    """``robust_peak`` with its options unpacked."""
     if not isinstance(probes, int) or probes < 1:
         raise ValueError(f"robust_peak.probes must be a positive integer, got {probes!r}")
-    plain = exact_peak(system, band, amplitude=amplitude, params=params, n_freq=n_freq,
-                       peaks=peaks, tol=tol, rtol=rtol, atol=atol, newton_steps=newton_steps,
-                       solver=solver)
+    plain = exact_peak_of(system, band, amplitude=amplitude, params=params, n_freq=n_freq,
+                          peaks=peaks, tol=tol, rtol=rtol, atol=atol,
+                          newton_steps=newton_steps, solver=solver, xtol=xtol,
+                          max_iter=max_iter, modes=modes)
     names = tuple(params)
     found = stable_responses(system, band, amplitude, probes=probes, samples=samples,
                              spread=spread, seed=seed, max_periods=max_periods, solver=solver,

@@ -25,7 +25,6 @@ whose status or period multiple changed, or that are unstable, are reported in
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 
@@ -37,7 +36,7 @@ import numpy as np
 from .._core.checks import check_scalar, require_x64
 from .._core.legacy import moved
 from .._core.status import Status
-from .._integration.settings import integrator_from
+from .._integration.settings import Integrator, integrator_from
 from .._periodic.shooting import Shooting
 from .._periodic.steady import make_config
 from .._systems.forcing import Harmonic
@@ -48,10 +47,11 @@ from .base import (
     band_objective,
     check_design,
     design_method,
+    legacy_objective,
 )
 from .objectives import SmoothPeak, as_objective
-from .peak import design_system, evaluate_points, exact_peak, peak_core
-from .robust import robust_peak, stable_responses
+from .peak import design_system, evaluate_points, exact_peak_of, peak_core
+from .robust import robust_peak_of, stable_responses
 
 _TRACES = {"tune_step": 0}
 
@@ -96,21 +96,44 @@ def _value_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg, t
     return val, g, aux
 
 
-def value_and_grad(system, params, omegas, *, amplitude, objective="peak", softness=2e-3,
-                   tol=1e-7, rtol=1e-10, atol=1e-10, newton_steps=40, solver=None):
-    """Band objective and its gradient with respect to the named parameters (in their own
-    units), e.g. ``value_and_grad(system, ["k1", "c1"], omegas, amplitude=2.0)``.
+def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=None,
+                   integrator=None, **legacy):
+    """A band objective over the grid ``omegas`` [rad/s] and its gradient with respect to
+    the named parameters (in their own units), e.g.
+    ``value_and_grad(system, ["k1", "c1"], omegas, amplitude=2.0)``.
+
+    ``objective``: ``objectives.SmoothPeak()`` (default) or ``MeanSquare()`` of the grid
+    amplitudes (implicit differentiation through each orbit solve), or ``ExactPeak()`` /
+    ``RobustPeak()`` over the grid's band (their ``n_freq`` is the grid's size); ``method``:
+    the ``Shooting`` of each orbit (default ``Shooting(tol=1e-7, newton_steps=40)``);
+    ``integrator``: default the design tolerances (1e-10).
 
     Returns ``(value, {name: dvalue/dname}, status per frequency)``."""
+    obj = SmoothPeak() if objective is None else (
+        SmoothPeak() if objective == "amplitude" else as_objective(objective, "value_and_grad"))
+    obj = legacy_objective(obj, "value_and_grad", legacy, options=("softness",))
+    method = design_method(method, "value_and_grad", legacy)
+    integ = integrator_from(integrator, "design", "value_and_grad",
+                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
+    if legacy:
+        raise TypeError(f"value_and_grad() got an unexpected keyword argument "
+                        f"{next(iter(legacy))!r}")
+    objective, softness = obj.kind, getattr(obj, "softness", 2e-3)
+    tol, newton_steps = method.tol, method.newton_steps
+    rtol, atol, solver = integ.rtol, integ.atol, integ.solver
     names, omegas = check_design(system, params, omegas, objective)
     if objective in ("exact_peak", "robust_peak"):
 
         if omegas.size < 3:
             raise ValueError(f"objective {objective!r} needs a grid of >= 3 frequencies")
-        fn = exact_peak if objective == "exact_peak" else robust_peak
-        pk = fn(system, (omegas[0], omegas[-1]), amplitude=amplitude, params=names,
-                n_freq=omegas.size, tol=tol, rtol=rtol, atol=atol, newton_steps=newton_steps,
-                solver=solver)
+        kw = dict(amplitude=amplitude, params=names, n_freq=omegas.size, peaks=obj.peaks,
+                  tol=tol, rtol=rtol, atol=atol, newton_steps=newton_steps, solver=solver,
+                  xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes)
+        band = (omegas[0], omegas[-1])
+        pk = (exact_peak_of(system, band, **kw) if objective == "exact_peak" else
+              robust_peak_of(system, band, probes=obj.probes, samples=obj.probe_samples,
+                             spread=obj.spread, seed=obj.seed, max_periods=obj.max_periods,
+                             **kw))
         plain = pk if objective == "exact_peak" else pk.plain
         return pk.value, pk.gradient, plain.grid_status
     p0 = jnp.array([float(get_param(system, k)) for k in names])
@@ -157,15 +180,16 @@ _OBJECTIVE_OPTIONS = ("n_freq", "softness", "peaks", "modes", "stability_margin"
 
 
 def tune(system, params, band, *, amplitude, objective=None, optimizer=None, steps=100,
-         bounds=None, starts=None, method=None, integrator=None, progress=False, confirm=True,
-         callback=None, **legacy):
+         starts=None, method=None, integrator=None, progress=False, confirm=True, **legacy):
     """Tune absorber parameters to minimise the steady-state amplitude of the system's
     observable over a frequency band.
 
     **Arguments**
 
     - ``system``: the starting design; ``params``: names to tune (``"k1"``, ``"c1"``, ``"m"``,
-      ``"gap"``, ``"N"``, ``"k2"``, ``"c2"``, ``"mu"``, ... : :func:`parameter_names`).
+      ``"gap"``, ``"N"``, ``"k2"``, ``"c2"``, ``"mu"``, ...: ``parameter_names(system)``), or
+      ``{name: (lo, hi)}`` with bounds in the parameters' units (``None``: unbounded, the
+      parameter must then stay positive).
     - ``band``: ``(lo, hi)`` [rad/s]; ``amplitude``: the force amplitude F0 [N].
     - ``objective``: an objective object from :mod:`absorber_jax.objectives` carrying its
       options; default :class:`~absorber_jax.objectives.ExactPeak` ``()``: the band's peaks
@@ -182,8 +206,6 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
       the exact objectives ``None`` means the minimax solve, an optax optimiser there descends
       the largest peak instead.
     - ``steps``: optimiser steps (SLSQP iterations for the minimax solve).
-    - ``bounds``: ``{name: (lo, hi)}`` in the parameters' units; unbounded parameters must be
-      positive.
     - ``starts``: global starts, ``{name: values}`` for some or all tuned parameters: the grid
       of their combinations is evaluated on the band in vmapped calls, the 3 best designs are
       each tuned and the best result returned (``history["starts"]``); a pair
@@ -195,7 +217,8 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
       reseeded by marching between evaluations instead.
     - ``integrator``: an :class:`Integrator` (default: the design tolerances, rtol = atol =
       1e-10).
-    - ``progress``: a tqdm bar; ``callback(step, params, value)`` after each evaluation.
+    - ``progress``: ``True`` for a tqdm bar, or a function ``progress(step, value, params)``
+      called after each evaluation.
     - ``confirm``: re-check the curves before and after by marching (an independent method)
       on 12 frequencies and march from 8 initial states at the tuned design's peak: the
       responses it settles on (``history["settles_on"]``); a pair ``(points, samples)`` sets
@@ -214,8 +237,19 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
     hist["best"]            # {"k1": ..., "c1": ...}
     ```
     """
+    bounds = legacy.pop("bounds", None)
+    if bounds is not None:
+        moved("tune", {"bounds": bounds}, "params={{name: (lo, hi)}} ({})")
+    if isinstance(params, dict):
+        bounds = {**{k: tuple(v) for k, v in params.items() if v is not None}, **(bounds or {})}
+        params = list(params)
+    callback = legacy.pop("callback", None)
+    if callback is not None:
+        moved("tune", {"callback": callback}, "progress=<your function> ({})")
+    if callable(progress):
+        callback, progress = progress, False
     obj = SmoothPeak() if objective == "amplitude" else as_objective(objective, "tune")
-    obj = _legacy_objective(obj, legacy)
+    obj = legacy_objective(obj, "tune", legacy)
     method = design_method(method, "tune", legacy)
     integ = integrator_from(integrator, "design", "tune",
                             {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
@@ -245,16 +279,6 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
                  solver=integ.solver, progress=progress, confirm=bool(confirm),
                  confirm_points=points, confirm_samples=samples, starts=starts,
                  n_starts=n_starts, callback=callback, **opts)
-
-
-def _legacy_objective(obj, legacy):
-    """``obj`` with the objective options given as deprecated keywords of ``tune``."""
-    given = {k: legacy.pop(k) for k in _OBJECTIVE_OPTIONS if k in legacy}
-    if not given:
-        return obj
-    moved("tune", given, f"objective=aj.objectives.{type(obj).__name__}({{}})")
-    names = {f.name for f in dataclasses.fields(obj)}
-    return dataclasses.replace(obj, **{k: v for k, v in given.items() if k in names})
 
 
 def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_freq, bounds,
@@ -388,7 +412,8 @@ def _settles_on(tuned, omega, designed, amplitude, samples, solver, rtol, atol):
         return {"omega": math.nan, "attractors": [], "designed": math.nan,
                 "worst_stable": math.nan, "is_designed": False}
     amap = attractors(tuned, Harmonic(amplitude=float(amplitude), omega=float(omega)),
-                      samples=samples, solver=solver, rtol=rtol, atol=atol)
+                      samples=samples,
+                      integrator=Integrator(solver=solver, rtol=rtol, atol=atol))
     stable = [x.amplitude for x in amap.attractors if x.periodic and x.stable]
     worst = float(max(stable)) if stable else math.nan
     return {"omega": float(omega), "attractors": [x.summary() for x in amap.attractors],

@@ -4,20 +4,17 @@ Every entry point that integrates takes ``integrator=Integrator(...)``: the diff
 the PID step-size controller's tolerances and the step budget.  A field left ``None`` takes
 the default of the task at hand, from ``DEFAULTS``, the only place those defaults live:
 
-| task | entry points | ``rtol`` | ``atol`` | ``max_steps`` |
-|---|---|---|---|---|
-| ``"simulate"`` | ``simulate`` | 1e-8 | 1e-10 | 1 000 000 |
-| ``"periodic"`` | ``steady_state``, ``frequency_response``, ``attractors``, ``continuation``,
-``band_continuation`` | 1e-9 | 1e-9 | 200 000 |
-| ``"design"`` | ``tune``, ``value_and_grad``, ``exact_peak``, ``robust_peak`` | 1e-10 | 1e-10 | 200
-000 |
+- ``"simulate"`` (``simulate``): rtol 1e-8, atol 1e-10 on the state in SI units [m, m/s];
+- ``"periodic"`` (``steady_state``, ``frequency_response``, ``attractors``,
+  ``continuation``, ``band_continuation``): rtol = atol = 1e-9 on the state scaled by the
+  orbit's own amplitude and velocity;
+- ``"design"`` (``tune``, ``value_and_grad``, ``exact_peak``, ``robust_peak``): rtol = atol
+  = 1e-10, tighter because gradients and the located peaks inherit the integration error;
+- ``max_steps`` 200 000 for all: the step budget per forcing period (an integration over
+  ``n`` periods, a run of ``simulate`` or a period-``n`` map, may take ``n`` times as many).
 
-Periodic solves integrate the state scaled by the orbit's own amplitude and velocity, so
-their ``atol`` is relative to those scales; ``simulate`` integrates the public state in
-SI units [m, m/s].  The design tolerances are tighter because gradients and the located
-peaks inherit the integration error.  ``max_steps`` is the step budget of one integration:
-the whole run in ``simulate``, one period map (``n`` forcing periods) in the periodic
-solvers.
+The solver defaults to the scene's choice: explicit Tsit5, or implicit Kvaerno5 when the
+scene is stiff (``choose_solver``).
 """
 
 from __future__ import annotations
@@ -34,7 +31,7 @@ class Integrator(eqx.Module):
       scene is stiff: :func:`choose_solver`), a name in :data:`SOLVERS`, or a diffrax
       solver object.
     - ``rtol``, ``atol``: the PID step-size controller's relative and absolute tolerances.
-    - ``max_steps``: the step budget of one integration.
+    - ``max_steps``: the step budget per forcing period.
     - ``dt0``: the first step [s] (``None``: diffrax chooses).
 
     ```python
@@ -51,7 +48,10 @@ class Integrator(eqx.Module):
     dt0: float | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
-        for name in ("rtol", "atol", "dt0"):
+        if self.rtol is not None:
+            check_scalar("Integrator", "rtol", self.rtol, lo=0.0, hi=1.0, lo_open=True,
+                         hi_open=True)
+        for name in ("atol", "dt0"):
             value = getattr(self, name)
             if value is not None:
                 check_scalar("Integrator", name, value, lo=0.0, lo_open=True)
@@ -77,7 +77,7 @@ class Integrator(eqx.Module):
 FIELDS = ("solver", "rtol", "atol", "max_steps", "dt0")
 
 DEFAULTS = {
-    "simulate": Integrator(rtol=1e-8, atol=1e-10, max_steps=1_000_000),
+    "simulate": Integrator(rtol=1e-8, atol=1e-10, max_steps=200_000),
     "periodic": Integrator(rtol=1e-9, atol=1e-9, max_steps=200_000),
     "design": Integrator(rtol=1e-10, atol=1e-10, max_steps=200_000),
 }
@@ -92,6 +92,9 @@ def integrator_from(integrator, task, where, legacy):
     given = {k: v for k, v in legacy.items() if v is not None}
     if integrator is None:
         integrator = Integrator()
+    elif given:
+        raise ValueError(f"{where}: give {sorted(given)} on the integrator "
+                         f"(aj.Integrator(...)), not as keywords")
     elif not isinstance(integrator, Integrator):
         raise ValueError(f"{where}.integrator must be an aj.Integrator(...), got "
                          f"{type(integrator).__name__}")

@@ -16,6 +16,8 @@ from .._core.custom_types import Status as StatusArray
 from .._core.status import Status, describe, from_diffrax
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractForcing
+from .settings import FIELDS as INTEGRATOR_FIELDS
+from .settings import integrator_from
 from .stickslip import hybrid_solve
 
 # The automatic choice switches to an implicit solver when (largest rate x forcing period)
@@ -312,31 +314,31 @@ def simulate(
     t0=0.0,
     ts=None,
     y0=None,
-    solver=None,
-    rtol=1e-8,
-    atol=1e-10,
-    dt0=None,
-    max_steps=1_000_000,
+    integrator=None,
     throw=True,
     energy=False,
     saves_per_period=40,
+    **legacy,
 ) -> Trajectory:
     """Integrate ``system`` under ``forcing`` from ``t0`` to ``t1`` [s] (float64, diffrax).
 
     **Arguments**
 
-    - ``system``: an :class:`ImpactAbsorber` or :class:`FrictionAbsorber`.
+    - ``system``: any system (``ImpactAbsorber``, ``FrictionAbsorber``,
+      ``StructuralSystem``, or one of your own).
     - ``forcing``: any ``AbstractForcing`` (``Harmonic``, ``MultiHarmonic``,
       ``PeriodicForcing``, ``RampedHarmonic``, or one of your own).
     - ``t1``: final time [s]; ``t0``: initial time (default 0).
     - ``ts``: save times (sorted, within ``[t0, t1]``); default a uniform grid with
       ``saves_per_period`` points per forcing period (at least 1001).
-    - ``y0``: public initial state ``[x1, v1, x2, v2, (z)]``; default rest.
-    - ``solver``: ``None``/``"auto"`` (explicit Tsit5, or implicit Kvaerno5 when the scene is
-      stiff, see :func:`choose_solver`), a name in ``SOLVERS``, or a diffrax solver.
-    - ``rtol``, ``atol``: PID step-size controller tolerances.
-    - ``max_steps``: integrator step budget; ``throw``: raise on failure (``False``: read
-      ``trajectory.status`` instead, as under ``vmap``).
+    - ``y0``: public initial state (``system.state_names`` gives its layout, e.g.
+      ``[x1, v1, x2, v2]`` for the two-mass absorbers, then ``z`` for Dahl and LuGre);
+      default rest.
+    - ``integrator``: an ``Integrator`` (default: rtol 1e-8, atol 1e-10 on the state in SI
+      units, the solver chosen by the scene's stiffness, ``max_steps`` per forcing period:
+      the run's budget is that times its number of periods).
+    - ``throw``: raise on failure, with what to try (``False``: read ``trajectory.status``
+      instead).
     - ``energy``: also integrate the work done by the forcing and the dissipated energy.
 
     **Returns** a :class:`Trajectory`.
@@ -361,14 +363,16 @@ def simulate(
                              "fundamental angular frequency omega [rad/s] (or subclass "
                              "AbstractForcing for a signal that is not periodic)")
         raise ValueError(f"forcing must be a forcing (e.g. Harmonic), got {type(forcing).__name__}")
+    integ = integrator_from(integrator, "simulate", "simulate",
+                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    if legacy:
+        raise TypeError(f"simulate() got an unexpected keyword argument {next(iter(legacy))!r}")
+    solver, rtol, atol, dt0 = integ.solver, integ.rtol, integ.atol, integ.dt0
     check_scalar("simulate", "t0", t0)
     check_scalar("simulate", "t1", t1, lo=float(t0), lo_open=True)
     check_scalar("simulate", "rtol", rtol, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
-    check_scalar("simulate", "atol", atol, lo=0.0, lo_open=True)
-    if not isinstance(max_steps, int) or max_steps < 1:
-        raise ValueError(f"simulate.max_steps must be a positive integer, got {max_steps!r}")
-    if dt0 is not None:
-        check_scalar("simulate", "dt0", dt0, lo=0.0, lo_open=True)
+    # the budget: max_steps per forcing period, times the run's number of periods
+    max_steps = int(integ.max_steps * max(1, math.ceil((t1 - t0) / float(forcing.period))))
     check_state("y0", y0, system.num_states)
     if energy and system.hybrid:
         raise ValueError("simulate.energy=True is not available with an exact stick–slip law "

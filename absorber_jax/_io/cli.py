@@ -176,8 +176,11 @@ def cmd_tune(args):
     amplitude = args.amplitude if args.amplitude is not None else float(forcing.amplitude)
     params = [p.strip() for p in args.params.split(",") if p.strip()]
     objective = BY_NAME[args.objective](n_freq=args.n_freq)
-    tuned, hist = tune(system, params, (lo, hi), amplitude=amplitude, objective=objective,
-                       steps=args.steps, bounds=bounds, progress=True,
+    for name in bounds:
+        if name not in params:
+            raise ValueError(f"--bounds given for {name!r}, which is not tuned ({params})")
+    tuned, hist = tune(system, {k: bounds.get(k) for k in params}, (lo, hi),
+                       amplitude=amplitude, objective=objective, steps=args.steps, progress=True,
                        confirm=not args.no_confirm)
     os.makedirs(args.out, exist_ok=True)
     plot_tuning(system, tuned, hist, os.path.join(args.out, "tuning.png"),
@@ -549,13 +552,15 @@ def cmd_attractors(args):
     from .._core.tables import attractor_columns, write_csv
     from .._core.units import with_unit
     from .._periodic.attractors import attractors, bifurcation_diagram
+    from .._periodic.marching import Marching
     from .._systems.forcing import Harmonic
     from .plots import plot_bifurcation_diagram
 
     t0 = time.perf_counter()
     system, amplitude, title, sets = _load_system(args)
-    opts = dict(samples=args.samples, n_max=args.n_max, max_periods=args.max_periods,
-                give_up=args.give_up, window=args.window, seed=args.seed)
+    opts = dict(samples=args.samples, window=args.window, seed=args.seed,
+                method=Marching(n_max=args.n_max, max_periods=args.max_periods, tol=1e-6,
+                                give_up=args.give_up))
     os.makedirs(args.out, exist_ok=True)
     if ":" in args.omega:
         lo, hi, n = _parse_range(args.omega, "--omega")

@@ -36,6 +36,8 @@ statistics.
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -46,11 +48,13 @@ from .._core.checks import check_scalar, require_x64
 from .._core.status import Status
 from .._core.units import Signals, signals_of
 from .._integration.flow import flow_along, make_config, state_scale
+from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
+from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
 from .marching import Marching
 from .orbit import SteadyState, _parabolic_peak, closures
-from .steady import check_system_and_forcing, solve_point
+from .steady import check_system_and_forcing, method_from, no_more, solve_point
 
 # samples per forcing period of the statistics window (at least)
 SAMPLES = 64
@@ -263,9 +267,8 @@ def _sample_states(system, forcing, samples, spread, seed):
 
 
 def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, initial_states=None,
-               samples=32, spread=3.0, seed=0, n_max=8, max_periods=2000, tol=1e-6,
-               give_up=None, window=40, rel_tol=2e-3, solver=None, rtol=1e-9, atol=1e-9,
-               max_steps=200_000, resolution=None) -> AttractorMap:
+               samples=32, spread=3.0, seed=0, method=None, integrator=None, window=40,
+               rel_tol=2e-3, resolution=None, **legacy) -> AttractorMap:
     """The distinct responses of ``system`` under ``forcing`` reached from many initial
     states (see the module docstring).
 
@@ -273,28 +276,36 @@ def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, init
 
     - ``initial_states``: ``(K, num_states)`` public states; default ``samples`` states
       uniform in a box of ``±spread`` state scales around rest (``seed``).
-    - ``n_max``, ``max_periods``, ``tol``: the marching (period multiples recognised, budget
-      in forcing periods, recurrence tolerance on the scaled state).
-    - ``give_up``: periods after which a lane that is not settling stops marching
-      (:class:`Marching`; default ``max_periods // 4``): a map whose lanes are all chaotic
-      then costs a quarter of the budget.  ``give_up=max_periods`` marches every lane to the
-      end of the budget (a transient chaos longer than ``give_up`` periods that ends on a
-      periodic orbit is otherwise reported as not periodic).
+    - ``method``: the ``Marching`` every lane runs, default ``Marching(n_max=8,
+      max_periods=2000, tol=1e-6)`` (period multiples recognised, budget in forcing periods,
+      recurrence tolerance on the scaled state).  Its ``give_up``, the periods after which a
+      lane that is not settling stops marching, defaults here to ``max_periods // 4``: a map
+      whose lanes are all chaotic then costs a quarter of the budget
+      (``give_up=max_periods`` marches every lane to the end of the budget; a transient chaos
+      longer than ``give_up`` periods that ends on a periodic orbit is otherwise reported as
+      not periodic).
+    - ``integrator``: an ``Integrator`` (default: the periodic tolerances).
     - ``window``: periods of the statistics window after marching.
     - ``resolution``: samples per forcing period over the window; default
       :func:`samples_per_period` (enough to count the impacts of the stiffest contact).
     - ``rel_tol``: two lanes are one attractor when their period multiples agree and their
       window amplitude and RMS agree to ``rel_tol`` (non-periodic: 5 %).
-    - ``solver``, ``rtol``, ``atol``, ``max_steps``: the integrator.
 
     **Returns** an :class:`AttractorMap`.
     """
     require_x64("attractors")
     check_system_and_forcing(system, forcing, "attractors")
-    if give_up is None and isinstance(max_periods, int):
-        give_up = max(1, max_periods // 4)
-    # (Marching checks max_periods and give_up, naming them)
-    method = Marching(n_max=n_max, max_periods=max_periods, tol=tol, give_up=give_up)
+    method = method_from(method, "attractors", legacy,
+                         default=Marching(n_max=8, max_periods=2000, tol=1e-6))
+    if not isinstance(method, Marching):
+        raise ValueError(f"attractors.method must be an aj.Marching(...), got "
+                         f"{type(method).__name__}")
+    if method.give_up is None:
+        method = dataclasses.replace(method, give_up=max(1, method.max_periods // 4))
+    integ = integrator_from(integrator, "periodic", "attractors",
+                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    no_more("attractors", legacy)
+    n_max = method.n_max
     # the window must show a period-n_max orbit repeating at least once
     for name, v, lo in (("samples", samples, 1), ("window", window, max(2, n_max + 1))):
         if not isinstance(v, int) or v < lo:
@@ -316,7 +327,7 @@ def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, init
                              f"({', '.join(system.state_names)}), got {y0.shape}")
         if not np.all(np.isfinite(y0)):
             raise ValueError("initial_states must be finite")
-    cfg = make_config(system, forcing, solver, rtol, atol, max_steps)
+    cfg = make_config(system, forcing, integ.solver, integ.rtol, integ.atol, integ.max_steps)
     x0s = jnp.stack([system.to_internal(jnp.asarray(y)) for y in y0])
     ss, stats = _march_all(system, forcing, x0s, cfg, method, int(window), resolution)
     ss = jax.tree_util.tree_map(np.asarray, ss)

@@ -33,13 +33,18 @@ absorber's motion relative to the primary (``x2 - x1``).
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from .._core.checks import check_state, is_traced, require_x64
+from .._core.legacy import moved
 from .._core.status import Status
 from .._integration.flow import _Config, _flow, make_config, period_map, state_scale  # noqa: F401
+from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
+from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import check_periodic
 from .base import AbstractSteadyMethod
@@ -91,24 +96,46 @@ def solve_point(system, forcing, method: AbstractSteadyMethod, cfg, *, guess=Non
     return method.solve(system, forcing, start / scale, cfg, with_floquet=with_floquet)
 
 
-def resolve_method(method, where, **options):
-    """A method object from ``method`` (``"shooting"``, ``"marching"`` or an
-    ``AbstractSteadyMethod``) and the entry point's option keywords (None = not
-    given).  Options belong on the object when an object is given."""
-    given = {k: v for k, v in options.items() if v is not None}
-    if isinstance(method, AbstractSteadyMethod):
-        if given:
-            raise ValueError(f"{where}: give {sorted(given)} on the method object "
-                             f"({type(method).__name__}(...)), not as keywords")
-        return method
-    if method == "shooting":
-        return Shooting(**{k: given[k] for k in ("n", "tol", "newton_steps", "root", "retry")
-                           if k in given})
-    if method == "marching":
-        return Marching(**{k: given[k] for k in ("n_max", "tol", "max_periods", "chunk")
-                           if k in given})
-    raise ValueError(f"method must be 'shooting', 'marching', Shooting(...) or Marching(...), "
-                     f"got {method!r}")
+_METHOD_OPTIONS = ("n", "tol", "newton_steps", "root", "retry", "n_max", "max_periods",
+                   "chunk", "give_up")
+
+
+def method_from(method, where, legacy, default=None):
+    """The steady-state method of an entry point: ``method`` (an ``AbstractSteadyMethod``,
+    or the names ``"shooting"``/``"marching"`` for ``Shooting()``/``Marching()``; ``None``:
+    ``default``, else ``Shooting()``), with the deprecated option keywords popped from
+    ``legacy`` set on it (a ``DeprecationWarning`` names the new form)."""
+    given = {k: legacy.pop(k) for k in _METHOD_OPTIONS if k in legacy}
+    given = {k: v for k, v in given.items() if v is not None}
+    if given and not (method is None or isinstance(method, str)):
+        raise ValueError(f"{where}: give {sorted(given)} on the method object "
+                         f"({type(method).__name__}(...)), not as keywords")
+    if method is None:
+        method = Shooting() if default is None else default
+    elif isinstance(method, str):
+        if method not in ("shooting", "marching"):
+            raise ValueError(f"{where}.method must be aj.Shooting(...), aj.Marching(...) (or "
+                             f"'shooting', 'marching'), got {method!r}")
+        method = Shooting() if method == "shooting" else Marching()
+    elif not isinstance(method, AbstractSteadyMethod):
+        raise ValueError(f"{where}.method must be a steady-state method such as "
+                         f"aj.Shooting(...) or aj.Marching(...), got {type(method).__name__}")
+    if given:
+        moved(where, given, f"method=aj.{type(method).__name__}({{}})")
+        fields = {f.name for f in dataclasses.fields(method)}
+        unknown = sorted(set(given) - fields)
+        if unknown:
+            raise ValueError(f"{where}: {unknown} are not options of "
+                             f"{type(method).__name__}")
+        method = dataclasses.replace(method, **given)
+    return method
+
+
+def no_more(where, legacy):
+    """Raise the ``TypeError`` Python would for keywords nothing took."""
+    if legacy:
+        raise TypeError(f"{where}() got an unexpected keyword argument "
+                        f"{next(iter(legacy))!r}")
 
 
 def check_system_and_forcing(system, forcing, where="steady_state"):
@@ -150,28 +177,22 @@ def _steady(system, forcing, guess, cfg, method, with_floquet):
     return _retry_jit(system, forcing, cfg, method, with_floquet)
 
 
-def steady_state(system, forcing, *, method="shooting", guess=None, solver=None, rtol=1e-9,
-                 atol=1e-9, max_steps=200_000, floquet=True, n=None, tol=None, n_max=None,
-                 newton_steps=None, max_periods=None, chunk=None, root=None,
-                 retry=None) -> SteadyState:
+def steady_state(system, forcing, *, method=None, integrator=None, guess=None, floquet=True,
+                 **legacy) -> SteadyState:
     """The periodic response of ``system`` under a periodic ``forcing`` (any
     ``AbstractPeriodicForcing``: ``Harmonic``, ``MultiHarmonic``,
     ``PeriodicForcing`` ...; its period is the fundamental ``2π/forcing.omega``).
 
     **Arguments**
 
-    - ``method``: :class:`Shooting` (Newton on the period-``n`` map from ``guess``, default
-      the linear limit of the scene, see :func:`linear_guess`; a failed solve is retried by
-      marching then shooting) or :class:`Marching` (integrate from ``guess``, default rest,
-      until the Poincaré samples repeat with a period ``n <= n_max``), as an object
-      carrying its options, or by name (``"shooting"``, ``"marching"``) with the options
-      as keywords: ``n``, ``tol`` (shooting 1e-6, marching 1e-5, on the state scaled to
-      order one), ``newton_steps``, ``root``, ``retry``; ``n_max``, ``max_periods``,
-      ``chunk``.
-    - ``guess``: public state ``[x1, v1, x2, v2, (z)]`` at ``t = 0``.
-    - ``solver``, ``rtol``, ``atol``, ``max_steps``: integrator settings (scaled state;
-      ``max_steps`` per forcing period: an integration over ``n`` periods may take ``n``
-      times as many).
+    - ``method``: ``Shooting(...)`` (the default: Newton on the period-``n`` map from
+      ``guess``, default the linear limit of the scene, see ``linear_guess``; a failed solve
+      is retried by marching then shooting) or ``Marching(...)`` (integrate from ``guess``,
+      default rest, until the Poincaré samples repeat with a period ``n <= n_max``), each
+      carrying its options (tolerances on the state scaled to order one).
+    - ``integrator``: an ``Integrator`` (default: the periodic tolerances, rtol = atol = 1e-9
+      on the scaled state, ``max_steps`` per forcing period).
+    - ``guess``: public state at ``t = 0`` (``system.state_names`` gives its layout).
     - ``floquet``: compute the Floquet multipliers (one forward-mode Jacobian); without
       them ``stable`` is False (not shown stable).
 
@@ -188,10 +209,11 @@ def steady_state(system, forcing, *, method="shooting", guess=None, solver=None,
     """
     require_x64("steady_state")
     check_system_and_forcing(system, forcing)
-    method = resolve_method(method, "steady_state", n=n, tol=tol, n_max=n_max,
-                            newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
-                            root=root, retry=retry)
+    method = method_from(method, "steady_state", legacy)
+    integ = integrator_from(integrator, "periodic", "steady_state",
+                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    no_more("steady_state", legacy)
     check_state("guess", guess, system.num_states)
-    cfg = make_config(system, forcing, solver, rtol, atol, max_steps)
+    cfg = make_config(system, forcing, integ.solver, integ.rtol, integ.atol, integ.max_steps)
     g = None if guess is None else system.to_internal(jnp.asarray(guess, dtype=float))
     return _steady(system, forcing, g, cfg, method, bool(floquet))

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import equinox as eqx
 import jax
@@ -14,15 +15,25 @@ import numpy as np
 from .._core import tables
 from .._core.checks import check_time_grid, require_x64
 from .._core.devices import by_parts, put
+from .._core.legacy import moved
 from .._core.status import Status, nan_where_failed
 from .._core.units import Signals, signals_of
 from .._integration.flow import lane_by_lane, large_state, state_scale
+from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
+from .._integration.settings import integrator_from
 from .._integration.simulate import choose_solver
 from .._systems.base import AbstractSystem
 from .._systems.forcing import at_frequency, sweep_shape
 from .._systems.params import replace_params, resolve
 from .orbit import SteadyResults, read_through
-from .steady import SteadyState, make_config, march_then_shoot, resolve_method, solve_point
+from .steady import (
+    SteadyState,
+    make_config,
+    march_then_shoot,
+    method_from,
+    no_more,
+    solve_point,
+)
 
 # the per-point scalar results of the point solve (SteadyState), read through
 FIELDS = tuple(f.name for f in dataclasses.fields(SteadyState)
@@ -323,53 +334,50 @@ def _sequential_chunk(system, omegas, amplitude, pvals, carry, cfg, method, name
     return carry, res
 
 
-def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="shooting",
-                       params=None, direction="parallel", chunk_size=64, progress=False,
-                       shard=True, floquet=True, solver=None, rtol=1e-9, atol=1e-9,
-                       max_steps=200_000, n=None, tol=None, n_max=None, newton_steps=None,
-                       max_periods=None, chunk=None, root=None, retry=None):
+def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None,
+                       integrator=None, params=None, direction="parallel", floquet=True,
+                       progress=False, **legacy):
     """Steady-state frequency response of ``system`` under ``amplitude·sin(ωt)`` for every
-    ``ω`` in ``omegas`` [rad/s], in one jit-compiled vmapped call per chunk.
+    ``ω`` in ``omegas`` [rad/s], in one jit-compiled vmapped call per chunk of points.
 
     **Arguments**
 
     - ``omegas``: sorted 1-D grid [rad/s]; ``amplitude``: force amplitude F0 [N] of
-      ``F0 sin(ωt)``, or a periodic forcing (``MultiHarmonic``,
-      ``PeriodicForcing`` ...) whose fundamental is swept: ``amplitude.with_omega(ω)``
-      at each ``ω`` (its own ``omega`` is not used).
-    - ``method``: :class:`Shooting` (default) or :class:`Marching`, as an object or by name
-      with its options as keywords (see :func:`steady_state`).
-    - ``params``: optional ``{name: 1-D array}`` of designs (same length ``P``); names as in
-      :mod:`_systems.params` (``k1``, ``c1``, ``m``, ``gap``, ``N``, ...).  Results then
-      have shape ``(P, F)``: a (design × frequency) grid in one call.
-    - ``direction``: ``"parallel"`` (independent points), ``"up"``, ``"down"`` (sequential,
-      each point seeded from its neighbour) or ``"both"`` (returns ``(up, down)``).
-    - ``chunk_size``: points per compiled call (padded, so one compilation serves all
-      chunks); ``progress``: show a tqdm bar over chunks.
-    - ``shard``: split each chunk (``direction="parallel"``) over all local devices (when
-      there are several), an equal part per device, each device running its own copy of
-      the program (compiled once per device) and taking the next part when its last is
-      done.  On a CPU, :func:`use_cpu_cores` (before any JAX computation) gives one device
-      per core.
-    - Parallel shooting does not wait for stragglers: the vmapped pass runs at most
-      ``FIRST_PASS_NEWTON`` Newton steps (in chunks of more than ``SMALL_CHUNK`` points),
-      the lanes still iterating resume from their best iterate a few at a time, and
-      (``retry``, the default) the points that still failed are re-solved by marching then
-      shooting (:func:`march_then_shoot`) before they are flagged.
-    - With ``root="chord"`` the parallel pass solves lanes of up to ``MAX_CHAIN``
-      neighbouring frequencies (``ceil(points / chunk_size)`` of them; large states:
-      ``ALONE_CHAIN``, one lane at a time), each point from the previous orbits of its lane
-      (extrapolated from the last two) with the previous Floquet monodromies as its
-      Jacobian: one monodromy per point (measured on the 44-state building of
-      ``scripts/benchmark_structure.py``: 62 → 34 s for 256 frequencies; 15.5 s with large
-      states' lanes one at a time, 4.3 s on two cores with the later changes).
-    - the remaining keywords as in :func:`steady_state`.
+      ``F0 sin(ωt)``, or a periodic forcing (``MultiHarmonic``, ``PeriodicForcing`` ...)
+      whose fundamental is swept: ``amplitude.with_omega(ω)`` at each ``ω`` (its own
+      ``omega`` is not used).
+    - ``method``: ``Shooting(...)`` (the default) or ``Marching(...)`` carrying its options
+      (as in ``steady_state``).  With ``Shooting(root="chord")`` the parallel pass follows
+      lanes of neighbouring frequencies, each point started from the orbits of the previous
+      ones (extrapolated from the last two) with their Floquet monodromy as its Jacobian:
+      one monodromy per point, the fastest choice for large structures.
+    - ``integrator``: an ``Integrator`` (default: the periodic tolerances).
+    - ``params``: optional ``{name: 1-D array}`` of designs (same length ``P``), names as
+      ``parameter_names(system)`` lists them (``k1``, ``c1``, ``m``, ``gap``, ``N``, ...).
+      Results then have shape ``(P, F)``: a (design × frequency) grid in one call.
+    - ``direction``: ``"parallel"`` (every point from its own linear guess), ``"up"`` or
+      ``"down"`` (each point seeded from its neighbour: follows one branch through its
+      jumps, as a slow sweep on a shaker would).
+    - ``floquet``: compute the Floquet multipliers and the stability labels.
+    - ``progress``: a tqdm bar over the points, which says when it is compiling.
+
+    Parallel shooting does not wait for stragglers: the vmapped pass runs a few Newton
+    steps, the points still iterating resume from their best iterate a few at a time, and
+    (``Shooting(retry=True)``, the default) the points that still failed are re-solved by
+    marching then shooting before they are flagged.  On a CPU, ``use_cpu_cores()`` (before
+    any JAX computation) gives one device per core and the points are split between them.
+
+    **Returns** a ``FrequencyResponse``: arrays over frequency (× designs), with a
+    ``status`` per point (0 = success; ``failures()`` says what failed and what to try).
 
     ```python
     import numpy as np, absorber_jax as aj
     system, _ = aj.presets.impact("kelvin_voigt")
     frf = aj.frequency_response(system, np.linspace(30, 70, 64), amplitude=2.0)
     frf.amplitude, frf.stable, frf.status
+    frf = aj.frequency_response(system, np.linspace(30, 70, 64), amplitude=2.0,
+                                method=aj.Marching(max_periods=2000),
+                                integrator=aj.Integrator(rtol=1e-10, atol=1e-10))
     ```
     """
     require_x64("frequency_response")
@@ -381,19 +389,32 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method="sho
     if om[0] <= 0:
         raise ValueError(f"omegas must be > 0 [rad/s], got {om[0]:g}")
     amplitude = sweep_shape(amplitude, "frequency_response")
-    method = resolve_method(method, "frequency_response", n=n, tol=tol, n_max=n_max,
-                            newton_steps=newton_steps, max_periods=max_periods, chunk=chunk,
-                            root=root, retry=retry)
+    method = method_from(method, "frequency_response", legacy)
+    integ = integrator_from(integrator, "periodic", "frequency_response",
+                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    solver, rtol, atol, max_steps = integ.solver, integ.rtol, integ.atol, integ.max_steps
+    chunk_size, shard = legacy.pop("chunk_size", 64), legacy.pop("shard", True)
+    if (chunk_size, shard) != (64, True):
+        moved("frequency_response", {"chunk_size": chunk_size, "shard": shard},
+              "neither ({}): the library sizes its compiled calls and splits them over the "
+              "devices that use_cpu_cores() gives")
+    no_more("frequency_response", legacy)
+    if direction == "both":
+        warnings.warn("frequency_response(direction='both') is deprecated (it returns a pair): "
+                      "call it with direction='up' and with direction='down'",
+                      DeprecationWarning, stacklevel=2)
     if direction not in ("parallel", "up", "down", "both"):
         raise ValueError(f"direction must be 'parallel', 'up', 'down' or 'both', got {direction!r}")
     if not isinstance(chunk_size, int) or chunk_size < 1:
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
     if direction == "both":
-        kw = dict(amplitude=amplitude, method=method, params=params, chunk_size=chunk_size,
-                  progress=progress, shard=shard, floquet=floquet, solver=solver, rtol=rtol,
-                  atol=atol, max_steps=max_steps)
-        return (frequency_response(system, om, direction="up", **kw),
-                frequency_response(system, om, direction="down", **kw))
+        kw = dict(amplitude=amplitude, method=method, params=params, progress=progress,
+                  floquet=floquet, integrator=integ)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            kw.update(chunk_size=chunk_size, shard=shard)
+            return (frequency_response(system, om, direction="up", **kw),
+                    frequency_response(system, om, direction="down", **kw))
 
     names, pvals = _check_params(system, params)
     P = pvals.shape[0]

@@ -37,6 +37,7 @@ from .._core.checks import check_scalar, require_x64
 from .._core.legacy import moved
 from .._core.status import Status
 from .._integration.settings import Integrator, integrator_from
+from .._periodic.marching import Marching
 from .._periodic.shooting import Shooting
 from .._periodic.steady import make_config
 from .._systems.forcing import Harmonic
@@ -365,8 +366,9 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
     hist["amplitude_before"] = evaluate.amps_before
     from .._periodic.sweep import frequency_response
 
-    after = frequency_response(tuned, omegas, amplitude=float(amplitude), tol=tol, rtol=rtol,
-                               atol=atol, newton_steps=newton_steps, solver=solver)
+    after = frequency_response(tuned, omegas, amplitude=float(amplitude),
+                               method=Shooting(tol=tol, newton_steps=newton_steps),
+                               integrator=Integrator(solver=solver, rtol=rtol, atol=atol))
     hist["amplitude_after"] = after.amplitude
     hist["status_after"] = after.status
     hist["stable_after"] = after.stable
@@ -384,7 +386,7 @@ def _confirm(system, tuned, hist, amplitude, points, samples, solver, rtol, atol
 
     omegas = hist["omegas"]
     om_c = np.linspace(omegas[0], omegas[-1], min(points, len(omegas)))
-    kw = dict(amplitude=float(amplitude), method="marching", max_periods=4000)
+    kw = dict(amplitude=float(amplitude), method=Marching(max_periods=4000))
     before = frequency_response(system, om_c, **kw)
     after_m = frequency_response(tuned, om_c, **kw)
     hist["confirm"] = {"omegas": om_c, "before": before.amplitude, "after": after_m.amplitude,
@@ -445,9 +447,10 @@ def _tune_from_starts(system, params, band, starts, n_starts, progress, kw):
     omegas = np.linspace(lo, hi, kw["n_freq"])
     grid = {k: np.array([c[k] for c in combos], dtype=float) for k in keys}
     fr = frequency_response(system, omegas, amplitude=float(kw["amplitude"]), params=grid,
-                            tol=kw["tol"], rtol=kw["rtol"], atol=kw["atol"],
-                            newton_steps=kw["newton_steps"], solver=kw["solver"], floquet=False,
-                            progress=progress)
+                            method=Shooting(tol=kw["tol"], newton_steps=kw["newton_steps"]),
+                            integrator=Integrator(solver=kw["solver"], rtol=kw["rtol"],
+                                                  atol=kw["atol"]),
+                            floquet=False, progress=progress)
     amp = np.where(np.asarray(fr.ok), np.asarray(fr.amplitude), np.inf)
     peak = np.max(amp, axis=-1).reshape(len(combos))
     order = [int(i) for i in np.argsort(peak) if np.isfinite(peak[i])][:n_starts]

@@ -25,6 +25,16 @@ def cmd_reproduce(args):
     print(f"figures, summary.json and amplitudes.csv written to {args.out}")
 
 
+def _sweeps(frequency_response, system, omegas, amplitude, method, direction, chunk,
+            progress):
+    """The sweeps of a CLI command: one, or up and down for ``direction="both"``; the
+    points per compiled call passed on only when asked for."""
+    extra = {} if chunk in (None, 64) else {"chunk_size": chunk}
+    directions = ("up", "down") if direction == "both" else (direction,)
+    return [frequency_response(system, omegas, amplitude=amplitude, method=method,
+                               direction=d, progress=progress, **extra) for d in directions]
+
+
 def _warn(text):
     """A warning line on stderr (the results are still written)."""
     print(f"warning: {text}", file=sys.stderr)
@@ -59,6 +69,7 @@ def cmd_simulate(args):
 
     from .. import presets
     from .._core.status import describe
+    from .._integration.settings import Integrator
     from .._integration.simulate import simulate
 
     system, forcing = presets.scene(args.scene)
@@ -67,7 +78,8 @@ def cmd_simulate(args):
         from .._systems.params import with_params
 
         system = with_params(system, sets)
-    tr = simulate(system, forcing, args.t1, solver=args.solver, throw=False)
+    tr = simulate(system, forcing, args.t1, integrator=Integrator(solver=args.solver),
+                  throw=False)
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     tr.to_csv(args.out)
     failed = int(tr.status) != 0
@@ -131,10 +143,9 @@ def cmd_sweep(args):
     amplitude = args.amplitude if args.amplitude is not None else float(forcing.amplitude)
     om = np.linspace(lo, hi, n)
     t = time.perf_counter()
-    out = frequency_response(system, om, amplitude=amplitude, method=args.method,
-                             direction=args.direction, chunk_size=args.chunk, progress=True)
+    frfs = _sweeps(frequency_response, system, om, amplitude, args.method, args.direction,
+                   args.chunk, True)
     elapsed = time.perf_counter() - t
-    frfs = list(out) if isinstance(out, tuple) else [out]
     for d in (os.path.dirname(os.path.abspath(p)) for p in [args.out] + [args.plot or args.out]):
         os.makedirs(d, exist_ok=True)
     if len(frfs) == 1:
@@ -321,10 +332,9 @@ def cmd_scene(args):
     title = settings.title or os.path.splitext(os.path.basename(args.file))[0]
     os.makedirs(args.out, exist_ok=True)
     t_loaded = time.perf_counter()
-    out = frequency_response(system, omegas, amplitude=amplitude, method=method,
-                             direction=direction, chunk_size=args.chunk, progress=args.progress)
+    frfs = _sweeps(frequency_response, system, omegas, amplitude, method, direction,
+                   args.chunk, args.progress)
     t_swept = time.perf_counter()
-    frfs = list(out) if isinstance(out, tuple) else [out]
     csvs = []
     for f in frfs:
         name = ("frequency_response.csv" if len(frfs) == 1

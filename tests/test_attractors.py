@@ -192,7 +192,12 @@ def test_flow_along_is_the_flow_derivative_along_one_direction():
     import jax
     import jax.numpy as jnp
 
-    from absorber_jax._integration.flow import _flow, accurate_tangents, flow_along, make_config
+    from absorber_jax._integration.flow import (
+        accurate_tangents,
+        flow_along,
+        integrate_flow,
+        make_config,
+    )
 
     system, forcing = aj.presets.impact("kelvin_voigt", omega=40.0)
     cfg = make_config(system, forcing, rtol=1e-10, atol=1e-10)
@@ -202,8 +207,8 @@ def test_flow_along_is_the_flow_derivative_along_one_direction():
     v = jnp.array([0.5, -1.0, 0.25, 2.0])
     ys, vs, st = flow_along(dyn, x, v, T, jnp.array([0.5 * T, T]), cfg)
     assert int(st) == aj.Status.SUCCESS
-    J = jax.jacfwd(lambda z: _flow(dyn, z, T, None, cfg=accurate_tangents(cfg))[0][-1])(x)
+    J = jax.jacfwd(lambda z: integrate_flow(dyn, z, T, None, cfg=accurate_tangents(cfg))[0][-1])(x)
     ref = np.asarray(J @ v)
     assert np.max(np.abs(np.asarray(vs[-1]) - ref)) < 1e-6 * np.max(np.abs(ref))
-    plain = np.asarray(_flow(dyn, x, T, None, cfg=cfg)[0][-1])
+    plain = np.asarray(integrate_flow(dyn, x, T, None, cfg=cfg)[0][-1])
     assert np.max(np.abs(np.asarray(ys[-1]) - plain)) < 1e-7 * np.max(np.abs(plain))

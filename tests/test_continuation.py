@@ -242,8 +242,8 @@ def test_a_section_moved_off_time_zero_reports_the_same_orbit():
     samples independently."""
     import jax.numpy as jnp
 
-    from absorber_jax._integration.flow import _flow, make_config, state_scale
-    from absorber_jax._periodic.orbit import SAMPLES_PER_PERIOD, _finish
+    from absorber_jax._integration.flow import integrate_flow, make_config, state_scale
+    from absorber_jax._periodic.orbit import SAMPLES_PER_PERIOD, finish_orbit
     from absorber_jax._systems.forcing import PhasedHarmonic
 
     system = hardening()
@@ -255,11 +255,11 @@ def test_a_section_moved_off_time_zero_reports_the_same_orbit():
     x0 = np.asarray(system.to_internal(jnp.asarray(ss.state))) / sc
     j = SAMPLES_PER_PERIOD // 4
     ts = np.arange(SAMPLES_PER_PERIOD + 1) * (f.period / SAMPLES_PER_PERIOD)
-    ys, _ = _flow((system, f), jnp.asarray(x0), float(ts[-1]), jnp.asarray(ts), cfg=cfg)
+    ys, _ = integrate_flow((system, f), jnp.asarray(x0), float(ts[-1]), jnp.asarray(ts), cfg=cfg)
     ys = np.asarray(ys)
     fj = PhasedHarmonic(amplitude=f.amplitude, omega=f.omega,
                         phase=2 * np.pi * j / SAMPLES_PER_PERIOD)
-    out, sec = _finish(system, fj, jnp.asarray(ys[j]), 1, cfg, 0, 0.0, 0, n_cap=1,
+    out, sec = finish_orbit(system, fj, jnp.asarray(ys[j]), 1, cfg, 0, 0.0, 0, n_cap=1,
                        multipliers=jnp.asarray(ss.multipliers), section=jnp.asarray(j))
     size = np.max(np.abs(ss.state))
     assert np.max(np.abs(np.asarray(out.state) - np.asarray(ss.state))) < 1e-7 * size

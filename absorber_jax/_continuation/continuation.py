@@ -18,7 +18,7 @@ residual of the steady-state layer, ``Φ_{nT}(x; p) - x``
   early where the residual has not halved over the last two steps.  The Jacobian of the last
   corrector iterate gives the next tangent and the Floquet multipliers (eigenvalues of
   ``M``) for free; the point's statistics and stability label are the point solve's
-  (``_periodic.orbit._finish``).
+  (``_periodic.orbit.finish_orbit``).
 - **Section**: the orbit's state is taken on a Poincaré section where the absorbers fly
   free, moved along the branch when a contact comes near it (``_Driver.resection``);
   the states reported are at ``t = 0``.
@@ -62,16 +62,22 @@ from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
 from .._core.status import Status, nan_where_failed
 from .._core.units import Signals, signals_of
 from .._integration.flow import (
-    _Config,
-    _flow,
+    Config,
     accurate_tangents,
+    integrate_flow,
     make_config,
     period_map,
     state_scale,
 )
 from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
 from .._integration.settings import integrator_from
-from .._periodic.orbit import SAMPLES_PER_PERIOD, SteadyResults, SteadyState, _finish, read_through
+from .._periodic.orbit import (
+    SAMPLES_PER_PERIOD,
+    SteadyResults,
+    SteadyState,
+    finish_orbit,
+    read_through,
+)
 from .._periodic.shooting import Shooting
 from .._periodic.steady import check_system_and_forcing, steady_state
 from .._systems.base import AbstractSystem
@@ -267,7 +273,7 @@ class _Problem(eqx.Module):
     forcing: AbstractPeriodicForcing
     s0: jax.Array
     pscale: jax.Array
-    cfg: _Config
+    cfg: Config
     parameter: str = eqx.field(static=True)
     n: int = eqx.field(static=True)
     section: jax.Array = eqx.field(default_factory=lambda: jnp.asarray(0))
@@ -300,7 +306,8 @@ class _Problem(eqx.Module):
         ``z`` (at its parameter), and the integrator's status."""
         sysp, forcp, sc, x = self._in_flow(z)
         ts = jnp.arange(1, periods + 1) * (self.n * forcp.period)
-        ys, st = _flow((sysp, forcp), x, ts[-1], ts, cfg=self.cfg.over_periods(self.n * periods))
+        ys, st = integrate_flow((sysp, forcp), x, ts[-1], ts,
+                                cfg=self.cfg.over_periods(self.n * periods))
         return ys * sc / self.s0, st
 
 
@@ -408,7 +415,7 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     mult = jnp.linalg.eigvals(J[:, :n] + jnp.eye(n))
     sysp, forcp = prob.in_section(z[-1])
     sc = state_scale(sysp, forcp)
-    ss, sec = _finish(sysp, forcp, z[:-1] * prob.s0 / sc, prob.n, prob.cfg, status, res, k,
+    ss, sec = finish_orbit(sysp, forcp, z[:-1] * prob.s0 / sc, prob.n, prob.cfg, status, res, k,
                       n_cap=prob.n, multipliers=mult, section=prob.section)
     return z, t, ss, sec
 

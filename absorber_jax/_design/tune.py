@@ -156,7 +156,7 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
     """Internal-state guesses for a band: the converged states where ``status`` is 0, and
     for the others the orbit found by marching then shooting (the sweep's retry, in
     fixed-size batches: one compilation)."""
-    from .._periodic.sweep import RETRY_BATCH, _retry_chunk
+    from .._periodic.sweep import RETRY_BATCH, retry_chunk
 
     p = np.asarray(reparam.forward(u))
     sysp = replace_params(system, dict(zip(names, p)), check=False)
@@ -166,7 +166,7 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
     for start in range(0, bad.size, RETRY_BATCH):
         idx = bad[start:start + RETRY_BATCH]
         pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
-        out = _retry_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
+        out = retry_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
                            jnp.asarray(amplitude, dtype=float),
                            jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, method, names, False)
         st, pub = np.asarray(out.status)[:idx.size], np.asarray(out.state)[:idx.size]

@@ -33,7 +33,7 @@ from .unrolled import unrolled
 MAX_SEGMENTS = SEGMENTS_PER_PERIOD * 64
 
 
-class _Config(eqx.Module):
+class Config(eqx.Module):
     solver: diffrax.AbstractSolver
     rtol: float = eqx.field(static=True)
     atol: float = eqx.field(static=True)
@@ -51,7 +51,7 @@ class _Config(eqx.Module):
     # integration run at two tolerances, see _periodic.orbit.floquet_matrix)
     tol_factors: tuple = (1.0, 1.0)
 
-    def over_periods(self, n: int) -> _Config:
+    def over_periods(self, n: int) -> Config:
         """The configuration of one integration over ``n`` forcing periods."""
         return dataclasses.replace(self, max_steps=int(self.max_steps) * int(n))
 
@@ -90,7 +90,7 @@ def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
     return sol.ys, from_diffrax(sol.result)
 
 
-def _integrate(dyn, x0, t0, t1, ts, cfg):
+def integrate(dyn, x0, t0, t1, ts, cfg):
     """Scaled states of ``dyn`` from ``x0`` at ``t0`` saved at ``ts`` (or at ``t1`` only when
     ``ts`` is None), and the status: smooth systems by one diffrax solve, hybrid ones
     (exact stick–slip) segment by segment (``_integration.stickslip``)."""
@@ -114,7 +114,7 @@ def _integrate(dyn, x0, t0, t1, ts, cfg):
 
 
 @eqx.filter_custom_jvp
-def _flow(dyn, x0, t1, ts, *, cfg):
+def integrate_flow(dyn, x0, t1, ts, *, cfg):
     """Scaled states of ``dyn = (system, forcing)`` from ``x0`` at ``t = 0`` saved at ``ts``
     (or at ``t1`` only when ``ts`` is None), and the integrator's status; differentiable in
     forward *and* reverse mode (``jax.jacfwd``, ``jax.linearize``, ``jax.grad``).
@@ -127,10 +127,10 @@ def _flow(dyn, x0, t1, ts, *, cfg):
     (one integration carrying ``len(x0) + #parameters`` tangents), with no backward
     integration or checkpointing, and reverse mode gives the same numbers as forward mode.
     """
-    return _integrate(dyn, x0, 0.0, t1, ts, cfg)
+    return integrate(dyn, x0, 0.0, t1, ts, cfg)
 
 
-def _flat_inputs(primals, tangents):
+def flat_inputs(primals, tangents):
     """The inexact leaves of ``primals`` that carry a tangent, as one vector; a function that
     puts such a vector back; and the tangents as one vector."""
     active, t_vec = _active_tangents(tangents)
@@ -164,12 +164,12 @@ def _flat_active(primals, active):
     return vec, rebuild
 
 
-@_flow.def_jvp
+@integrate_flow.def_jvp
 def _flow_jvp(primals, tangents, *, cfg):
     is_none = lambda a: a is None  # noqa: E731
     dyn, x0, t1, ts = primals
     if all(t is None for t in jax.tree_util.tree_leaves(tangents, is_leaf=is_none)):
-        return _integrate(dyn, x0, 0.0, t1, ts, cfg), (None, None)
+        return integrate(dyn, x0, 0.0, t1, ts, cfg), (None, None)
     # Smooth systems: a Jacobian in the system, forcing and initial state; the save times
     # (they move with the forcing period) add the flow's rate there.  They are not input
     # directions of the Jacobian: sampling an orbit at 256 times whose tangent is the
@@ -199,7 +199,7 @@ def _flow_jvp(primals, tangents, *, cfg):
 
             def states(v):
                 dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
-                ys, status = _integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
+                ys, status = integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
                 return ys, (ys, status)
 
             jac, (ys, status) = jax.jacfwd(states, has_aux=True)(vec)
@@ -209,7 +209,7 @@ def _flow_jvp(primals, tangents, *, cfg):
         jac = jnp.where(jnp.isfinite(jac), jac, 0.0)
         dys = jnp.tensordot(jac, t_vec, axes=1)
     else:
-        ys, status = _integrate(dyn, x0, 0.0, t1, ts, cfg)
+        ys, status = integrate(dyn, x0, 0.0, t1, ts, cfg)
         dys = jnp.zeros_like(ys)
     dt = None if hybrid else (tangents[2] if ts is None else tangents[3])
     if dt is not None:
@@ -235,7 +235,7 @@ def large_state(system):
     sensitivity equations, integrated lane by lane under vmap (``lane_by_lane``),
     Floquet monodromies coarse first (``_periodic.orbit.floquet_matrix``), chained sweep lanes one
     at a time, a smooth system's plain integrations with unrolled stages
-    (``_integrate``)."""
+    (``integrate``)."""
     return system.num_states >= SENSITIVITY_STATES
 
 
@@ -286,7 +286,7 @@ def lane_by_lane(fn):
 
 
 def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
-    """The Jacobian of ``_flow`` in the flat input vector ``vec`` (``rebuild(vec)`` =
+    """The Jacobian of ``integrate_flow`` in the flat input vector ``vec`` (``rebuild(vec)`` =
     ``(dyn, x0)``; the save times fixed) by the matrix sensitivity equations
     ``Ẋ_v = ∂f/∂x X_v + ∂f/∂v``, all ``m`` input directions integrated together with the
     state in one solve.
@@ -344,11 +344,12 @@ def flow_along(dyn, x0, v0, t1, ts, cfg):
 
     One integration of the state and that tangent together, with steps controlled on both
     (as ``accurate_tangents``): what a Lyapunov exponent needs, at the cost of one
-    tangent rather than the ``n`` of a Jacobian (``jax.jvp`` of ``_flow`` assembles the
+    tangent rather than the ``n`` of a Jacobian (``jax.jvp`` of ``integrate_flow`` assembles the
     full Jacobian first).  Hybrid (exact stick–slip) systems, whose tangent crosses events,
-    take ``jax.jvp`` of ``_flow``.  Returns ``(ys, vs, status)``."""
+    take ``jax.jvp`` of ``integrate_flow``.  Returns ``(ys, vs, status)``."""
     if dyn[0].hybrid:
-        (ys, status), (vs, _) = jax.jvp(lambda z: _flow(dyn, z, t1, ts, cfg=cfg), (x0,), (v0,))
+        (ys, status), (vs, _) = jax.jvp(lambda z: integrate_flow(dyn, z, t1, ts, cfg=cfg),
+                                        (x0,), (v0,))
         return ys, vs, status
 
     def augmented(t, y, a):
@@ -365,18 +366,18 @@ def flow_along(dyn, x0, v0, t1, ts, cfg):
     return ys, vs, status
 
 
-def period_map(system, forcing, x0, n, cfg: _Config, t0=0.0, *, n_cap=None):
+def period_map(system, forcing, x0, n, cfg: Config, t0=0.0, *, n_cap=None):
     """Scaled state after ``n`` forcing periods from ``t = 0``, and the integrator's status
     (``t0`` must be a multiple of the forcing period; ``n`` may be traced when ``n_cap``,
     its static upper bound, is given)."""
     del t0
     T = 2 * jnp.pi / forcing.omega
     cfg_n = cfg.over_periods(n if n_cap is None else n_cap)
-    ys, status = _flow((system, forcing), x0, n * T, None, cfg=cfg_n)
+    ys, status = integrate_flow((system, forcing), x0, n * T, None, cfg=cfg_n)
     return ys[-1], status
 
 
-def accurate_tangents(cfg: _Config) -> _Config:
+def accurate_tangents(cfg: Config) -> Config:
     """``cfg`` for a Jacobian whose integration steps are controlled on the tangents as well
     as the state (explicit solvers; implicit ones integrate sensitivity equations anyway).
     Floquet multipliers and continuation tangents use it: forward mode through steps chosen
@@ -395,5 +396,5 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
     lam, period = system.stiffness_rate(), forcing.period
     stiffish = (not is_traced(lam) and not is_traced(period)
                 and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
-    return _Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
+    return Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
                    tangent_control=bool(explicit and stiffish and not system.hybrid))

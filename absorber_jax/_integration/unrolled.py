@@ -9,8 +9,8 @@ forcing period of the 44-state building of ``scripts/benchmark_structure.py`` (T
 1e-7, ~620 steps) takes 4.3 ms through diffrax's loop and 2.4 ms unrolled, the same numbers
 to 1e-13.  Unrolled, the program is larger: that period compiles in 1.9 s instead of 0.9 s, a
 44 × 44 monodromy in 4.0 s instead of 1.9 s.  So a large smooth state's plain integrations use them
-(``_integration.flow._integrate``), and of the integrations carrying tangents only the Floquet
-monodromies a sweep repeats at every point (``_Config.unroll_tangents``, see
+(``_integration.flow.integrate``), and of the integrations carrying tangents only the Floquet
+monodromies a sweep repeats at every point (``Config.unroll_tangents``, see
 ``_periodic.orbit.floquet_matrix``): with one tangent direction per row, the 44 × 44 monodromy at
 rtol 1e-5 (~300 steps) takes 14 ms instead of 20 ms (17 ms unrolled with a direction per
 column).  Small states, vmapped over many lanes that share the

@@ -13,9 +13,9 @@ import jax.numpy as jnp
 
 from .._core.checks import check_scalar
 from .._core.status import Status
-from .._integration.flow import _integrate
+from .._integration.flow import integrate
 from .base import AbstractSteadyMethod
-from .orbit import _finish, _no_gradient, implicit_orbit
+from .orbit import _no_gradient, finish_orbit, implicit_orbit
 
 # a response whose closest recurrence min_n d_n is below this many tol is near periodic: a
 # march that ends there is NO_CONVERGENCE (not NOT_PERIODIC), and give_up lets it march on
@@ -43,7 +43,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
     def body(c):
         t, x, buf, d_prev, d_prev2, k, _, _, _, best, (d_first, p_first), _ = c
         ts = t + T * jnp.arange(1, chunk + 1)
-        ys, st = _integrate((system, forcing), x, t, ts[-1], ts, cfg.over_periods(chunk))
+        ys, st = integrate((system, forcing), x, t, ts[-1], ts, cfg.over_periods(chunk))
         # the section sample closest to its own image one period later, in the second half
         # of the budget (after the transient): where a response that never settles passes
         # nearest a period-1 orbit, the start that a failed march hands to shooting
@@ -117,7 +117,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
     res = jnp.where(found, d[n_eff - 1], jnp.min(d))
     system, forcing = dyn_in
     x = implicit_orbit(x, system, forcing, n_eff, cfg=cfg, n_cap=n_max)
-    return _finish(system, forcing, x, n_eff, cfg, status, res, k * chunk, with_floquet,
+    return finish_orbit(system, forcing, x, n_eff, cfg, status, res, k * chunk, with_floquet,
                    n_cap=n_max)
 
 

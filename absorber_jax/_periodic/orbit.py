@@ -26,9 +26,9 @@ import numpy as np
 
 from .._core.status import Status
 from .._integration.flow import (
-    _flat_inputs,
-    _flow,
     accurate_tangents,
+    flat_inputs,
+    integrate_flow,
     lane_by_lane,
     large_state,
     period_map,
@@ -160,10 +160,10 @@ def sample_orbit(system, forcing, x0, n, cfg, n_cap=1, *, with_end=False):
     N = SAMPLES_PER_PERIOD * n_cap
     ts = jnp.arange(N) * (n * T / N)
     if with_end:
-        ys, st = _flow((system, forcing), x0, n * T, jnp.append(ts, n * T),
+        ys, st = integrate_flow((system, forcing), x0, n * T, jnp.append(ts, n * T),
                        cfg=cfg.over_periods(n_cap))
         return ys[:-1] * scale, ts, st, ys[-1]
-    ys, st = _flow((system, forcing), x0, n * T, ts, cfg=cfg.over_periods(n_cap))
+    ys, st = integrate_flow((system, forcing), x0, n * T, ts, cfg=cfg.over_periods(n_cap))
     return ys * scale, ts, st
 
 
@@ -302,17 +302,17 @@ def _implicit_orbit_jvp(primals, tangents, *, cfg, n_cap):
                                                          is_leaf=lambda a: a is None)):
         return x, None
     x = jax.lax.stop_gradient(x)
-    vec, rebuild, t_vec = _flat_inputs((system, forcing), (t_sys, t_forc))
+    vec, rebuild, t_vec = flat_inputs((system, forcing), (t_sys, t_forc))
     _, rhs = jax.jvp(lambda v: period_map(*rebuild(v), x, n, cfg, n_cap=n_cap)[0],
                      (vec,), (t_vec,))
     M = monodromy(*_no_gradient((system, forcing, x)), n, cfg, n_cap=n_cap)
-    # (the flow's Jacobians are finite, see _flow; the tangent stays linear in dθ, so that
+    # (the flow's Jacobians are finite, see integrate_flow; the tangent stays linear in dθ, so that
     # reverse mode can transpose it: no test on its values)
     op = lx.MatrixLinearOperator(jnp.eye(x.shape[0]) - jnp.where(jnp.isfinite(M), M, 0.0))
     return x, lx.linear_solve(op, rhs, lx.SVD(), throw=False).value
 
 
-def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
+def finish_orbit(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
             n_cap=1, multipliers=None, tol=None, section=None):
     """The ``SteadyState`` of the scaled orbit state ``x`` (statistics, multipliers,
     stability); ``multipliers`` when the caller already has them (continuation: from the
@@ -328,7 +328,7 @@ def _finish(system, forcing, x, n, cfg, status, residual, iterations, with_floqu
     scale = state_scale(system, forcing)
     stats, st2, stroke_max, end, samples = orbit_statistics(system, forcing, x, n, cfg, n_cap)
     if section is not None and samples.shape[0] != SAMPLES_PER_PERIOD * n:
-        raise ValueError("_finish(section=...) needs a static n equal to n_cap")
+        raise ValueError("finish_orbit(section=...) needs a static n equal to n_cap")
     if tol is not None:
         residual = jnp.max(jnp.abs(end - x))
         status = jnp.where(st2 != Status.SUCCESS, st2,

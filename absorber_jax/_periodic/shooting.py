@@ -21,7 +21,7 @@ from .._core.checks import check_scalar
 from .._core.status import Status
 from .._integration.flow import period_map
 from .base import AbstractSteadyMethod
-from .orbit import _finish, floquet_matrix, monodromy
+from .orbit import finish_orbit, floquet_matrix, monodromy
 
 
 def _keep_best(best, y, size, valid=True):
@@ -123,7 +123,7 @@ def _residual(n, cfg):
         # repeat the same failing, possibly max_steps-long integration newton_steps times);
         # the status below then flags the point
         bad = (st != Status.SUCCESS) | ~jnp.all(jnp.isfinite(xn))
-        # (the flow's tangents are finite: see _flow)
+        # (the flow's tangents are finite: see integrate_flow)
         return jnp.where(bad, jnp.zeros_like(x), xn - x)
 
     return residual
@@ -146,7 +146,7 @@ def shoot(system, forcing, x_guess, n, cfg, *, tol=1e-8, newton_steps=40, with_f
                                  max_steps=newton_steps, throw=False, adjoint=adjoint)
     # the residual at the solution comes from the statistics' integration of the orbit (one
     # integration fewer: measured ~9 % of a vmapped Table 1 sweep)
-    return _finish(system, forcing, sol.value, n, cfg, None, None, sol.stats["num_steps"],
+    return finish_orbit(system, forcing, sol.value, n, cfg, None, None, sol.stats["num_steps"],
                    with_floquet, n_cap=n, tol=tol)
 
 
@@ -218,7 +218,7 @@ def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=4
     x, k = _broyden(residual, x_guess, H0, (system, forcing), 0.1 * tol, steps)
     mono, mult = (floquet_matrix(system, forcing, x, n, cfg, unroll=True) if with_floquet
                   else (None, None))
-    res = _finish(system, forcing, x, n, cfg, None, None, k, with_floquet, n_cap=n, tol=tol,
+    res = finish_orbit(system, forcing, x, n, cfg, None, None, k, with_floquet, n_cap=n, tol=tol,
                   multipliers=mult)
     if mono is None:
         return res, jacobian

@@ -42,7 +42,7 @@ import jax.numpy as jnp
 from .._core.checks import check_state, is_traced, require_x64
 from .._core.legacy import moved
 from .._core.status import Status
-from .._integration.flow import _Config, _flow, make_config, period_map, state_scale  # noqa: F401
+from .._integration.flow import Config, integrate_flow, make_config, period_map, state_scale  # noqa: F401
 from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
 from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem

@@ -129,7 +129,7 @@ def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, method, names,
 
 
 @eqx.filter_jit
-def _retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
+def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
     def point(w, pv):
         return march_then_shoot(_with(system, names, pv), _forcing(amplitude, w), cfg, method,
                                 with_floquet=with_floquet)
@@ -185,7 +185,7 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
             with_floquet), "resume", progress, _retry_batch(system))
     if method.retry:
         bad = np.flatnonzero(res.status != Status.SUCCESS)
-        res = _in_batches(res, bad, lambda p: _retry_chunk(
+        res = _in_batches(res, bad, lambda p: retry_chunk(
             system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
             with_floquet), "retry", progress, _retry_batch(system))
     return res
@@ -480,7 +480,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
             W = np.broadcast_to(om[None, :], (P, len(om))).reshape(-1)
             PV = np.repeat(pvals, len(om), axis=0)
             bad = np.flatnonzero(flat.status != Status.SUCCESS)
-            flat = _in_batches(flat, bad, lambda p: _retry_chunk(
+            flat = _in_batches(flat, bad, lambda p: retry_chunk(
                 system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
                 floquet), "retry", progress, _retry_batch(system))
             res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), flat)

@@ -19,6 +19,8 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
+from .progress import PointProgress
+
 
 def use_cpu_cores(n=None):
     """Make JAX's CPU backend expose ``n`` devices (default: the cores this process may run
@@ -66,14 +68,14 @@ def on_devices(solve, jobs, ndev, progress=None):
     the devices run, BLAS (OpenBLAS, under XLA's LAPACK calls) is held to one thread: its
     threads spin after each call on the core the other device needs (measured: two devices
     13.5 s with OpenBLAS's 2 threads, 9.9 s with 1; on one device 1 thread costs nothing).
-    ``progress``: called once per finished job.  Exceptions are raised here, after the
-    others have stopped."""
+    ``progress(i)``: called once per finished job ``i``.  Exceptions are raised here, after
+    the others have stopped."""
     if ndev <= 1:
         out = []
-        for job in jobs:
+        for i, job in enumerate(jobs):
             out.append(jax.device_get(solve(job, None)))
             if progress is not None:
-                progress()
+                progress(i)
         return out
     devices = jax.local_devices()[:ndev]
     todo = queue.SimpleQueue()
@@ -96,7 +98,7 @@ def on_devices(solve, jobs, ndev, progress=None):
                 return
             if progress is not None:
                 with lock:
-                    progress()
+                    progress(i)
 
     with one_blas_thread(ndev):
         threads = [threading.Thread(target=work, args=(d,), daemon=True) for d in devices]
@@ -115,9 +117,7 @@ def by_parts(rows, size, solve, ndev, progress=False):
     of ``ndev``), the last part padded by repeating its last row (one compilation serves
     all); the results of the real rows, concatenated.  The devices work through the parts in
     turn, each taking the next as soon as it is done (``on_devices``); ``progress``: a
-    tqdm bar over the parts."""
-    from tqdm.auto import tqdm
-
+    bar over the points (``PointProgress``)."""
     part = size // ndev
     jobs, keep = [], []
     for start in range(0, rows.shape[0], part):
@@ -126,8 +126,9 @@ def by_parts(rows, size, solve, ndev, progress=False):
         if idx.shape[0] < part:
             idx = np.concatenate([idx, np.repeat(idx[-1:], part - idx.shape[0], axis=0)])
         jobs.append(idx)
-    with tqdm(total=len(jobs), desc="sweep", disable=not progress) as bar:
-        res = on_devices(solve, jobs, ndev, progress=bar.update)
+    points = [int(np.size(rows[start:start + part])) for start in range(0, rows.shape[0], part)]
+    with PointProgress(sum(points), "sweep", bool(progress)) as bar:
+        res = on_devices(solve, jobs, ndev, progress=lambda i: bar.update(points[i]))
     return jax.tree_util.tree_map(lambda *a: np.concatenate(
         [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
 

@@ -16,6 +16,7 @@ from .._core import tables
 from .._core.checks import check_time_grid, require_x64
 from .._core.devices import by_parts, put
 from .._core.legacy import moved
+from .._core.progress import PointProgress
 from .._core.status import Status, nan_where_failed
 from .._core.units import Signals, signals_of
 from .._integration.flow import lane_by_lane, large_state, state_scale
@@ -149,9 +150,10 @@ def _in_batches(res, bad, solve, desc, progress, size):
     """Apply ``solve(padded indices)`` to the points ``bad`` of a flat (point-axis) result in
     fixed batches of ``size`` (one compilation) and write the results back; the iteration
     counts add up."""
-    from tqdm.auto import tqdm
-
-    for start in tqdm(range(0, bad.size, size), desc=desc, disable=not progress):
+    if bad.size == 0:
+        return res
+    bar = PointProgress(bad.size, desc, bool(progress))
+    for start in range(0, bad.size, size):
         idx = bad[start:start + size]
         pad = np.concatenate([idx, np.repeat(idx[-1:], size - idx.size)])
         k = idx.size
@@ -163,6 +165,8 @@ def _in_batches(res, bad, solve, desc, progress, size):
             return dst
 
         res = jax.tree_util.tree_map(write, res, out)
+        bar.update(k)
+    bar.bar.close()
     return res
 
 
@@ -432,7 +436,6 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
     floquet = bool(floquet)
     order = om if direction != "down" else om[::-1]
 
-    from tqdm.auto import tqdm
 
     if direction == "parallel":
         # flatten (design, frequency) into one axis of points
@@ -458,8 +461,8 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
         size = min(chunk_size, len(order))
         out = []
         pv = jnp.asarray(pvals)
-        for start in tqdm(range(0, len(order), size), desc=f"sweep {direction}",
-                          disable=not progress):
+        bar = PointProgress(P * len(order), f"sweep {direction}", bool(progress))
+        for start in range(0, len(order), size):
             w = order[start:start + size]
             pad = size - w.shape[0]
             if pad:
@@ -468,6 +471,8 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
                                            names, floquet)
             keep = size - pad
             out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
+            bar.update(P * keep)
+        bar.bar.close()
         res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)
         if direction == "down":
             res = jax.tree_util.tree_map(lambda a: a[:, ::-1], res)

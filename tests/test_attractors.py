@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import reference_nlvib03 as ref03
 import references as R
-from test_structural import nlvib03
+from builders import nlvib03
 
 import absorber_jax as aj
 from absorber_jax._periodic.attractors import samples_per_period

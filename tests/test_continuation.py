@@ -8,21 +8,10 @@ import numpy as np
 import pytest
 import reference_jumps as rj
 import reference_nlvib03 as ref03
+from builders import HARD, hardening, nlvib03
 from reference_jumps import slow_sweep_jumps
-from test_structural import nlvib03
 
 import absorber_jax as aj
-
-HARD = dict(c=0.02, F0=0.05, k_c=3.0, g=0.5)   # reference_jumps' scene (m = k = 1)
-
-
-def hardening():
-    """One DOF, m = k = 1, c = 0.02, a one-sided spring k_c = 3 beyond q = 0.5."""
-    st = aj.structure_from_matrices(np.eye(1), np.eye(1), damping=HARD["c"] * np.eye(1))
-    stop = aj.Contact("x1", gap=HARD["g"], contact=aj.KelvinVoigt(stiffness=HARD["k_c"],
-                                                                  damping=0.0,
-                                                                  adhesive=True))
-    return aj.StructuralSystem(st, [stop], load="x1")
 
 
 def test_linear_branch_follows_the_closed_form_frf_without_bifurcations():

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from builders import TIGHT
 from scipy.optimize import minimize
 
 import absorber_jax as aj
 from absorber_jax._design import tune as _design
-
-TIGHT = dict(tol=1e-9, rtol=1e-11, atol=1e-11)
 
 
 def central_fd(system, names, omegas, amplitude, objective, rel=1e-4):

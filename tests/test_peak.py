@@ -4,33 +4,22 @@ the minimax design on it, against closed forms, dense grids and central differen
 import numpy as np
 import pytest
 import reference_jumps as rj
+from builders import TIGHT, WN, K, M, tmd
 from reference_hinf import h_infinity, nishihara_asami, peaks, receptance
 
 import absorber_jax as aj
 
-TIGHT = dict(tol=1e-10, rtol=1e-12, atol=1e-12)
-M, K, WN = 1.0, 1e4, 100.0
-
-
-def tmd(mu, f, zeta):
-    """A linear tuned mass damper on an undamped primary: the impact absorber with no gap and
-    a Kelvin–Voigt contact is a spring and dashpot in both directions."""
-    m = mu * M
-    ka = m * (f * WN) ** 2
-    law = aj.KelvinVoigt(stiffness=ka, damping=2 * zeta * np.sqrt(ka * m), adhesive=True)
-    return aj.ImpactAbsorber(M=M, k=K, c=0.0, m=m, gap=0.0, contact=law)
-
 
 def test_exact_peak_of_an_impact_absorber_matches_a_dense_grid_and_central_differences():
     system, _ = aj.presets.impact("kelvin_voigt")
-    kw = dict(amplitude=2.0, n_freq=16, **TIGHT)
+    kw = dict(amplitude=2.0, objective=aj.objectives.ExactPeak(n_freq=16), **TIGHT)
     pk = aj.exact_peak(system, (25.0, 45.0), params=["k1", "c1"], **kw)
     assert pk.ok[pk.index] and pk.located[pk.index]
     w = pk.omega
     # a dense grid around the located peak; the grid maximum refined by the parabola through
     # its three highest points (error ~ spacing^3)
     dense = np.linspace(w - 0.2, w + 0.2, 41)
-    fr = aj.frequency_response(system, dense, amplitude=2.0, tol=1e-10, rtol=1e-12, atol=1e-12)
+    fr = aj.frequency_response(system, dense, amplitude=2.0, **TIGHT)
     assert np.all(fr.ok)
     a = np.asarray(fr.amplitude)
     i = int(np.argmax(a))
@@ -60,8 +49,8 @@ def test_exact_peak_of_an_impact_absorber_matches_a_dense_grid_and_central_diffe
 def _check_peaks_and_gradients_against_the_closed_form():
     mu, f, zeta = 0.05, 0.95, 0.1
     system = tmd(mu, f, zeta)
-    pk = aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, params=["k1", "c1"], n_freq=16,
-                       **TIGHT)
+    pk = aj.exact_peak(system, (70.0, 130.0), amplitude=1.0, params=["k1", "c1"],
+                       objective=aj.objectives.ExactPeak(n_freq=16), **TIGHT)
     assert np.all(pk.ok) and np.all(pk.located)
     ref = peaks(mu, f, zeta)
     assert len(ref) == 2
@@ -93,7 +82,7 @@ def _check_a_narrow_resonance_between_grid_points():
     peaks equal the closed form's."""
     mu, f, zeta = 0.05, 0.95, 0.002
     pk = aj.exact_peak(tmd(mu, f, zeta), (70.0, 130.0), amplitude=1.0, params=["k1", "c1"],
-                       n_freq=16, **TIGHT)
+                       objective=aj.objectives.ExactPeak(n_freq=16), **TIGHT)
     ref = peaks(mu, f, zeta)
     top = max(h for _, h in ref) / K
     uniform = pk.grid_amplitude[:16]
@@ -196,8 +185,8 @@ def test_robust_objective_reports_the_coexisting_upper_branch():
     follows the lower branch, so the plain exact peak is the linear response at the band edge;
     the attractor maps find the upper branch, whose amplitude at 1.2 is the worst response.
     Both against exact piecewise-linear references (reference_jumps)."""
+    from builders import HARD, hardening
     from scipy.optimize import fsolve
-    from test_continuation import HARD, hardening
 
     system = hardening()
     r = aj.robust_peak(system, (1.1, 1.2), amplitude=HARD["F0"], params=["contact1.stiffness"],
@@ -233,8 +222,8 @@ def test_robust_tuning_removes_the_coexisting_upper_branch():
     descend); the rounds follow it as the design moves until the maps at the result find one
     response per probe, and every response found there is the exact piecewise-linear orbit
     (reference_jumps' period map)."""
+    from builders import HARD, hardening
     from scipy.optimize import fsolve
-    from test_continuation import HARD, hardening
 
     c, F0 = HARD["c"], HARD["F0"]
     tuned, hist = aj.tune(hardening(), {"contact1.gap": (0.05, 2.0)}, (1.1, 1.2), amplitude=F0,

@@ -11,8 +11,7 @@ import sys
 import matplotlib
 import numpy as np
 import pytest
-from test_continuation import HARD, hardening
-from test_structure import MASSES, RAYLEIGH, STOREYS, TMDS
+from builders import HARD, MASSES, RAYLEIGH, STOREYS, TMDS, hardening
 
 import absorber_jax as aj
 from absorber_jax._core.status import MEASURED

@@ -12,7 +12,7 @@ import os
 import equinox as eqx
 import numpy as np
 import pytest
-from test_structure import MASSES, RAYLEIGH, STOREYS, TMDS
+from builders import MASSES, RAYLEIGH, STOREYS, TMDS
 
 import absorber_jax as aj
 from absorber_jax._io.cli import main

@@ -8,19 +8,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import reference_nlvib03 as ref
-from test_structure import MASSES, RAYLEIGH, STOREYS, TMDS
+from builders import MASSES, RAYLEIGH, STOREYS, TMDS, nlvib03
 
 import absorber_jax as aj
 from absorber_jax._integration.flow import SENSITIVITY_STATES
-
-K03 = np.array([[1.0, -1.0], [-1.0, 2.0]])
-
-
-def nlvib03():
-    st = aj.structure_from_matrices(np.eye(2), K03, damping=0.03 * K03)
-    spring = aj.Contact("x1", gap=1.0, contact=aj.KelvinVoigt(stiffness=100.0, damping=0.0,
-                                                              adhesive=True))
-    return aj.StructuralSystem(st, [spring], load="x2", observe="x2")
 
 
 def test_nlvib_example_03_matches_the_event_exact_reference_both_ways():

@@ -5,38 +5,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from builders import MASSES, RAYLEIGH, STOREYS, TMDS
 
-from absorber_jax._systems.structure import (
-    cantilever_beam,
-    shear_building,
-    structure_from_matrices,
-    structure_from_modes,
-)
+import absorber_jax as aj
 
-MASSES = [2.0e3, 2.0e3, 1.5e3]                 # kg, ground floor first
-STOREYS = [4.0e6, 3.5e6, 3.0e6]               # N/m
-RAYLEIGH = (0.2, 5e-4)
+cantilever_beam, shear_building = aj.cantilever_beam, aj.shear_building
+structure_from_matrices, structure_from_modes = aj.structure_from_matrices, aj.structure_from_modes
 
-
-def _den_hartog_dampers():
-    """Three dampers, one per mode, each at the floor where its mode moves most, tuned by
-    Den Hartog on the mode's effective mass there (1 / φ², mass-normalised modes); mass
-    ratios 5 %, 2 %, 1 %.  (numpy, independently of the library.)"""
-    m, k = np.array(MASSES), np.array(STOREYS)
-    K = np.array([[k[0] + k[1], -k[1], 0.0], [-k[1], k[1] + k[2], -k[2]], [0.0, -k[2], k[2]]])
-    lam, V = np.linalg.eigh(np.diag(m**-0.5) @ K @ np.diag(m**-0.5))
-    phi = np.diag(m**-0.5) @ V
-    out = []
-    for r, mu in enumerate((0.05, 0.02, 0.01)):
-        j = int(np.argmax(np.abs(phi[:, r])))
-        mt = mu / phi[j, r] ** 2
-        wt = np.sqrt(lam[r]) / (1 + mu)
-        zt = np.sqrt(3 * mu / (8 * (1 + mu) ** 3))
-        out.append((f"floor{j + 1}", mt, mt * wt**2, 2 * zt * mt * wt))
-    return out
-
-
-TMDS = _den_hartog_dampers()
 OMEGAS = np.linspace(5.0, 120.0, 400)
 
 

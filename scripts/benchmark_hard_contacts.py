@@ -114,7 +114,7 @@ def band(name, rtol):
     t0 = time.perf_counter()
     brs = aj.band_continuation(system, aj.Harmonic(amplitude=F0, omega=BAND[0]), "omega",
                                bounds=BAND, starts=8, method=aj.PseudoArclength(max_points=60),
-                               rtol=rtol, atol=rtol)
+                               integrator=aj.Integrator(rtol=rtol, atol=rtol))
     dt = time.perf_counter() - t0
     spans = sorted((b.values[b.ok].min(), b.values[b.ok].max()) for b in brs if b.ok.any())
     covered = []

@@ -614,13 +614,13 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
       or any name of ``system.parameter_names()`` (``k1``, ``gap``, ``N``, ``tmd1.k`` ...).
     - ``bounds``: ``(lo, hi)``: the branch ends where the parameter leaves them (the last
       point lands on the bound); the start value must lie inside.
-    - ``method``: a :class:`PseudoArclength` with the step and corrector options.
+    - ``method``: a ``PseudoArclength`` with the step and corrector options.
     - ``n``: period multiple of the orbits followed.
     - ``direction``: ``"up"`` or ``"down"``: the parameter's direction at the start.
     - ``start``: None (the first orbit is solved at the forcing's and system's current
       parameter value by Newton shooting from ``guess``, default the linear response, and by
-      :func:`steady_state` with its retries where that fails), or a period-doubling
-      :class:`Bifurcation` of a branch of this system in this parameter: the period-``2n``
+      ``steady_state`` with its retries where that fails), or a period-doubling
+      ``Bifurcation`` of a branch of this system in this parameter: the period-``2n``
       branch born there is followed (branch switching); ``direction`` is then ignored.
     - ``integrator``: an ``Integrator`` (default: the periodic tolerances, rtol = atol =
       1e-9 on the scaled state; the solver is chosen at the lowest frequency of the bounds
@@ -629,7 +629,7 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
       reported at the nearer branch point.
     - ``progress``: a tqdm bar over the branch points.
 
-    **Returns** a :class:`Branch`.
+    **Returns** a ``Branch``.
 
     ```python
     import absorber_jax as aj
@@ -733,7 +733,7 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
 
     The bifurcations of all the half-branches are located together once the passes end.
 
-    **Returns** a tuple of :class:`Branch` es, two per start (down, then up), the fill
+    **Returns** a tuple of ``Branch`` es, two per start (down, then up), the fill
     passes' after the starts' (two per fill start that had a first guess).
     """
     method, lo, hi = _check_common(system, forcing, parameter, bounds, method, n,

@@ -192,13 +192,13 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
       ``{name: (lo, hi)}`` with bounds in the parameters' units (``None``: unbounded, the
       parameter must then stay positive).
     - ``band``: ``(lo, hi)`` [rad/s]; ``amplitude``: the force amplitude F0 [N].
-    - ``objective``: an objective object from :mod:`absorber_jax.objectives` carrying its
-      options; default :class:`~absorber_jax.objectives.ExactPeak` ``()``: the band's peaks
+    - ``objective``: an objective object from ``absorber_jax.objectives`` carrying its
+      options; default ``absorber_jax.objectives.ExactPeak`` ``()``: the band's peaks
       located exactly and minimised as a minimax problem by SLSQP on the epigraph, which
-      lands on the equal-peak (H∞) optimum.  :class:`~absorber_jax.objectives.RobustPeak`
+      lands on the equal-peak (H∞) optimum.  ``absorber_jax.objectives.RobustPeak``
       adds the stable coexisting responses attractor maps find;
-      :class:`~absorber_jax.objectives.SmoothPeak` and
-      :class:`~absorber_jax.objectives.MeanSquare` are grid objectives descended by
+      ``absorber_jax.objectives.SmoothPeak`` and
+      ``absorber_jax.objectives.MeanSquare`` are grid objectives descended by
       ``optimizer``.  The names ``"exact_peak"``, ``"robust_peak"``, ``"peak"``,
       ``"mean_square"`` stand for those objects with their default options.
     - ``optimizer``: an optax transformation acting on the reparametrised values (``log p``
@@ -211,12 +211,12 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
       of their combinations is evaluated on the band in vmapped calls, the 3 best designs are
       each tuned and the best result returned (``history["starts"]``); a pair
       ``(grid, n_best)`` keeps ``n_best`` instead of 3.
-    - ``method``: the :class:`Shooting` that solves each orbit (its ``tol``, the scaled
+    - ``method``: the ``Shooting`` that solves each orbit (its ``tol``, the scaled
       max-norm of the period-map residual, and ``newton_steps``); default
       ``Shooting(tol=1e-7, newton_steps=40)``.  Design evaluations never fall back to
       marching (a branch switch would make the objective discontinuous): failed points are
       reseeded by marching between evaluations instead.
-    - ``integrator``: an :class:`Integrator` (default: the design tolerances, rtol = atol =
+    - ``integrator``: an ``Integrator`` (default: the design tolerances, rtol = atol =
       1e-10).
     - ``progress``: ``True`` for a tqdm bar, or a function ``progress(step, value, params)``
       called after each evaluation.

@@ -28,7 +28,7 @@ class Integrator(eqx.Module):
     """The time integration: ``solver``, tolerances and step budget (module docstring).
 
     - ``solver``: ``None`` or ``"auto"`` (explicit Tsit5, or implicit Kvaerno5 when the
-      scene is stiff: :func:`choose_solver`), a name in :data:`SOLVERS`, or a diffrax
+      scene is stiff: ``choose_solver``), a name in ``SOLVERS``, or a diffrax
       solver object.
     - ``rtol``, ``atol``: the PID step-size controller's relative and absolute tolerances.
     - ``max_steps``: the step budget per forcing period.

@@ -341,7 +341,7 @@ def simulate(
       instead).
     - ``energy``: also integrate the work done by the forcing and the dissipated energy.
 
-    **Returns** a :class:`Trajectory`.
+    **Returns** a ``Trajectory``.
 
     ```python
     import absorber_jax as aj

@@ -7,7 +7,8 @@ A law maps a penetration ``δ ≥ 0`` [m] and its rate ``δ̇`` [m/s] to a compr
 derivative of the smoothed penetration, so the viscous term switches on with contact).
 """
 
-from __future__ import annotations
+# (no ``from __future__ import annotations`` here: equinox reads ``AbstractVar`` only from
+# evaluated annotations; as strings they would become required fields of the base class)
 
 import abc
 import math

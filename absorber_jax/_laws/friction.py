@@ -9,7 +9,8 @@ as ``tanh(v/eps)`` (Coulomb, Stribeck, on request) and ``|v|`` as ``v·tanh(v/ep
 LuGre, on request); by default every law is exact.
 """
 
-from __future__ import annotations
+# (no ``from __future__ import annotations`` here: equinox reads ``AbstractVar`` only from
+# evaluated annotations; as strings they would become required fields of the base class)
 
 import abc
 from typing import ClassVar

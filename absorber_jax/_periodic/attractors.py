@@ -287,11 +287,11 @@ def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, init
     - ``integrator``: an ``Integrator`` (default: the periodic tolerances).
     - ``window``: periods of the statistics window after marching.
     - ``resolution``: samples per forcing period over the window; default
-      :func:`samples_per_period` (enough to count the impacts of the stiffest contact).
+      ``samples_per_period`` (enough to count the impacts of the stiffest contact).
     - ``rel_tol``: two lanes are one attractor when their period multiples agree and their
       window amplitude and RMS agree to ``rel_tol`` (non-periodic: 5 %).
 
-    **Returns** an :class:`AttractorMap`.
+    **Returns** an ``AttractorMap``.
     """
     require_x64("attractors")
     check_system_and_forcing(system, forcing, "attractors")

@@ -239,12 +239,12 @@ class Shooting(AbstractSteadyMethod):
       reused: one monodromy per solve, for large structural states with close guesses; in
       a parallel sweep the points run in lanes of neighbours, each from the previous orbits
       with the previous Floquet monodromies as its Jacobian (extrapolated from the last
-      two), Broyden-updated: see :func:`shoot_chord`) or ``"lm"`` (Levenberg–Marquardt).
+      two), improved by Broyden updates) or ``"lm"`` (Levenberg–Marquardt).
     - ``retry``: a failed solve is retried by marching from rest and polishing the marched
       orbit by shooting, before it is flagged.
     - ``give_up``: with ``root="newton"``, stop after this many Newton steps if the scaled
       residual is still above 1e-2 (an iterate wandering outside Newton's basin); None:
-      use the whole budget.  :func:`steady_state` sets 8 when it will retry, so that the
+      use the whole budget.  ``steady_state`` sets 8 when it will retry, so that the
       marching retry starts at once (LuGre with sigma0 = 1e8 and |v| smoothed at eps = 1e-4: 40
       wandering steps cost 50 s).
     """

@@ -196,7 +196,7 @@ def steady_state(system, forcing, *, method=None, integrator=None, guess=None, f
     - ``floquet``: compute the Floquet multipliers (one forward-mode Jacobian); without
       them ``stable`` is False (not shown stable).
 
-    **Returns** a :class:`SteadyState`; check ``status`` (0 = success).  ``iterations``
+    **Returns** a ``SteadyState``; check ``status`` (0 = success).  ``iterations``
     counts Newton steps, plus periods marched when the retry marched.
 
     ```python

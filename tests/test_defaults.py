@@ -39,3 +39,20 @@ def test_parameter_names_are_design_parameters():
     assert "eps" not in aj.parameter_names(impact)
     # settings stay replaceable by name
     assert float(aj.get_param(aj.replace_params(impact, {"eps": 1e-7}), "eps")) == 1e-7
+
+
+def test_a_gap_far_beyond_the_motion_is_warned_about():
+    """A clearance of 1 m on millimetre motion (a unit slip) is warned about before anything
+    is computed; the paper's 1 mm clearance is not."""
+    import warnings
+
+    import pytest
+
+    system, forcing = aj.presets.impact("kelvin_voigt")
+    far = aj.replace_params(system, {"gap": 1.0})
+    with pytest.warns(UserWarning, match=r"clearance of 1 m is .* the walls will not be"):
+        aj.simulate(far, forcing, 0.05)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        aj.simulate(system, forcing, 0.05)
+    assert not [w for w in caught if "clearance" in str(w.message)]

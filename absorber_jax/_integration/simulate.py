@@ -16,6 +16,7 @@ from .._core.custom_types import Status as StatusArray
 from .._core.status import Status, describe, from_diffrax
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractForcing
+from .._systems.scales import warn_scales
 from .settings import FIELDS as INTEGRATOR_FIELDS
 from .settings import integrator_from
 from .stickslip import hybrid_solve
@@ -374,6 +375,7 @@ def simulate(
     # the budget: max_steps per forcing period, times the run's number of periods
     max_steps = int(integ.max_steps * max(1, math.ceil((t1 - t0) / float(forcing.period))))
     check_state("y0", y0, system.num_states)
+    warn_scales(system, forcing, "simulate")
     if energy and system.hybrid:
         raise ValueError("simulate.energy=True is not available with an exact stick–slip law "
                          "(friction.exact=True): use the smoothed law for energy bookkeeping")

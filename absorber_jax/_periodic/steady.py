@@ -47,6 +47,7 @@ from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
 from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import check_periodic
+from .._systems.scales import warn_scales
 from .base import AbstractSteadyMethod
 from .marching import Marching
 from .orbit import SAMPLES_PER_PERIOD, SteadyState, orbit_statistics  # noqa: F401
@@ -214,6 +215,7 @@ def steady_state(system, forcing, *, method=None, integrator=None, guess=None, f
                             {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
     no_more("steady_state", legacy)
     check_state("guess", guess, system.num_states)
+    warn_scales(system, forcing, "steady_state")
     cfg = make_config(system, forcing, integ.solver, integ.rtol, integ.atol, integ.max_steps)
     g = None if guess is None else system.to_internal(jnp.asarray(guess, dtype=float))
     return _steady(system, forcing, g, cfg, method, bool(floquet))

@@ -26,6 +26,7 @@ from .._integration.simulate import choose_solver
 from .._systems.base import AbstractSystem
 from .._systems.forcing import at_frequency, sweep_shape
 from .._systems.params import replace_params, resolve
+from .._systems.scales import warn_scales
 from .orbit import SteadyResults, read_through
 from .steady import (
     SteadyState,
@@ -421,6 +422,9 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
                     frequency_response(system, om, direction="down", **kw))
 
     names, pvals = _check_params(system, params)
+    warn_scales(system, [_forcing(amplitude, float(w))
+                         for w in om[np.linspace(0, om.size - 1, min(om.size, 16)).astype(int)]],
+                "frequency_response")
     P = pvals.shape[0]
     if solver is None or solver == "auto":
         # one solver serves the whole grid: implicit if any design is stiff at the lowest

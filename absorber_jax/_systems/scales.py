@@ -1,0 +1,58 @@
+"""Inputs orders of magnitude away from the system's own scales: warned about before any
+computation, since they are usually a unit slip (a gap in millimetres given as metres)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .._core.checks import is_traced
+from .forcing import AbstractPeriodicForcing
+
+# a clearance this many times the linear response's largest displacement is never reached
+# (contacts only take energy out of that response)
+FAR = 100.0
+
+
+def scale_warnings(system, forcing) -> list:
+    """Messages about inputs far from the scales of ``system`` under ``forcing``: a contact
+    clearance more than ``FAR`` times the largest displacement of the linear response (the
+    system's own ``linear_guess``: its displacements and their rates at ``t = 0``), so that
+    no wall is ever touched.  Empty for a system without contacts,
+    a forcing that is not periodic, or traced values."""
+    if not isinstance(forcing, AbstractPeriodicForcing):
+        return []
+    rest = system.rest_state()
+    pen = system.penetrations(rest)
+    if pen.size == 0 or is_traced(pen):
+        return []
+    s0 = system.linear_guess(forcing)
+    if is_traced(s0):
+        return []
+    # displacements at t = 0 and their rates (the displacements are linear in the state):
+    # the amplitude of a harmonic x = a sin(ωt + φ) is sqrt(x² + (ẋ/ω)²)
+    x = np.asarray(system.outputs(s0))
+    xdot = np.asarray(system.outputs(system.vector_field(0.0, s0, forcing)))
+    motion = np.sqrt(x**2 + (xdot / float(forcing.omega)) ** 2)
+    amp = float(np.max(motion)) if motion.size else 0.0
+    gap = float(np.max(-np.asarray(pen)))
+    if not (np.isfinite(amp) and amp > 0.0) or gap <= FAR * amp:
+        return []
+    return [f"a contact clearance of {gap:.3g} m is {gap / amp:.2g} times the largest "
+            f"displacement of the linear response ({amp:.3g} m at omega = "
+            f"{float(forcing.omega):.4g} rad/s): the walls will not be reached. Lengths are "
+            f"in metres (a gap of 1 mm is gap=1e-3)."]
+
+
+def warn_scales(system, forcings, where: str) -> None:
+    """Issue the ``scale_warnings`` of ``system`` under the closest of ``forcings`` (one
+    forcing, or several: a sweep's frequencies) as one ``UserWarning`` naming ``where``."""
+    found = None
+    for forcing in (forcings if isinstance(forcings, (list, tuple)) else [forcings]):
+        texts = scale_warnings(system, forcing)
+        if not texts:
+            return
+        found = texts
+    for text in found or []:
+        warnings.warn(f"{where}: {text}", UserWarning, stacklevel=3)

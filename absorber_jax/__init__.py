@@ -24,13 +24,9 @@ from ._core.cache import setup_on_import as _setup_cache  # noqa: E402
 _setup_cache()  # the persistent compilation cache (absorber_jax._core.cache)
 
 from . import objectives, presets  # noqa: E402
-from ._continuation.continuation import (  # noqa: E402
-    Bifurcation,
-    Branch,
-    PseudoArclength,
-    band_continuation,
-    continuation,
-)
+from ._continuation.branch import Bifurcation, Branch  # noqa: E402
+from ._continuation.continuation import band_continuation, continuation  # noqa: E402
+from ._continuation.method import PseudoArclength  # noqa: E402
 from ._core.devices import use_cpu_cores  # noqa: E402
 from ._core.status import Status, describe  # noqa: E402
 from ._design.base import band_objective, smooth_max  # noqa: E402

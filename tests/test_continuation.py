@@ -150,15 +150,15 @@ def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
     the 240 periods), so its closest returns lie near the orbit: each seed's state is the
     exact piecewise-linear orbit's state at t = 0 to 1e-3 of the orbit's size, and the
     corrector from a seed converges to it (1e-6)."""
-    from absorber_jax._continuation.continuation import (
+    from absorber_jax._continuation.driver import (
         _axis,
         _close_returns,
         _config,
         _Driver,
         _first_orbit,
-        _Problem,
         _run_batched,
     )
+    from absorber_jax._continuation.problem import _Problem
     from absorber_jax._integration.flow import state_scale
 
     sysm = hardening()

@@ -471,7 +471,8 @@ def cmd_continue(args):
     import os
     import time
 
-    from .._continuation.continuation import PseudoArclength, continuation
+    from .._continuation.continuation import continuation
+    from .._continuation.method import PseudoArclength
     from .._systems.forcing import Harmonic
     from .plots import plot_branches
 
@@ -585,7 +586,9 @@ def cmd_attractors(args):
     write_csv(os.path.join(args.out, "attractors.csv"),
               [(h, np.concatenate([np.asarray(p[j][1]) for p in parts]))
                for j, (h, _) in enumerate(parts[0])])
-    summary = {"scene": args.file or args.scene, "F0": amplitude, "set": sets, **opts,
+    summary = {"scene": args.file or args.scene, "F0": amplitude, "set": sets,
+               "samples": args.samples, "window": args.window, "seed": args.seed,
+               "n_max": args.n_max, "max_periods": args.max_periods, "give_up": args.give_up,
                "maps": [m.summary() for m in maps], "time_s": time.perf_counter() - t0}
     with open(os.path.join(args.out, "summary.json"), "w") as fh:
         json.dump(summary, fh, indent=2)

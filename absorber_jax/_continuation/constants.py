@@ -1,0 +1,57 @@
+"""Numerical constants of the continuation: tolerances, patience and the band's fill."""
+
+from __future__ import annotations
+
+FORCING_PARAMETERS = ("omega", "amplitude")
+
+
+KINDS = ("fold", "period_doubling", "neimark_sacker")
+
+
+# a bifurcation is located when its bracket has shrunk to locate_tol and the test function
+# there is this small against its values at the bracket's first ends (else it jumps there)
+JUMP_TOL = 1e-3
+
+
+# band_continuation's first guesses at a start value: the linear response scaled by these
+# (near a resonance the linear response can be far larger than the impacting orbit: on the
+# Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py Newton from it fails at 29.4
+# and 35.9 rad/s)
+START_SCALES = (1.0, 0.3, 0.1)
+
+
+# band_continuation's starts where no scaled linear response converges: first guesses from
+# the CLOSE_RETURNS closest returns of a trajectory marched CLOSE_RETURN_PERIODS periods (the
+# first CLOSE_RETURN_SKIP left out as transient)
+CLOSE_RETURN_PERIODS, CLOSE_RETURN_SKIP, CLOSE_RETURNS = 240, 40, 3
+
+
+# band_continuation's fill passes start new branches in the parts of the band no branch
+# reached that are wider than this fraction of it
+GAP = 1e-4
+
+
+# a first orbit's Newton (from a far guess) is given up once its residual has grown this
+# many times over the least so far: on the hard-contact scenes of
+# scripts/benchmark_hard_contacts.py, Newton from the guesses that fail diverges from its
+# first steps (the Hertz band's fill passes: residuals from ~1 to 1e2-1e6 in 12 steps, each
+# step dearer as the iterate's motion grows, 47 s of its 102 s), while the guesses that
+# succeed decrease the residual at every step
+PATIENT_GROWTH = 10.0
+
+
+# a branch's Poincaré section moves (Driver.resection) where the clearance to the nearest
+# contact wall there has fallen below RESECTION of the best on the orbit, and not where
+# the tangent's parameter component (which orients the tangent in the new section) is below
+# RESECTION_TANGENT
+RESECTION, RESECTION_TANGENT = 0.5, 1e-3
+
+
+# ... and keeps the point re-solved there only where its state at t = 0 is the point's to
+# this fraction of the orbit's size (at rtol 1e-7 the hard-contact orbits' states at t = 0,
+# mapped from two sections, differ by up to ~1e-2 where the absorber is in contact)
+RESECTION_SAME = 5e-2
+
+
+# a sharp turn of the tangent is accepted as a corner once the step is reduced this much
+CORNER_REDUCTION = 16.0

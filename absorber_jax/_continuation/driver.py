@@ -1,0 +1,428 @@
+"""Following a branch: the stateful driver (predictor, corrector, step control, the
+Poincaré section moved where the absorbers fly free), the first orbit, batched
+correctors over devices, bifurcation location and branch switching."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
+from .._core.status import Status, nan_where_failed
+from .._core.units import signals_of
+from .._integration.flow import (
+    make_config,
+)
+from .branch import Bifurcation, Branch
+from .constants import (
+    CLOSE_RETURN_PERIODS,
+    CLOSE_RETURN_SKIP,
+    CLOSE_RETURNS,
+    CORNER_REDUCTION,
+    JUMP_TOL,
+    RESECTION,
+    RESECTION_SAME,
+    RESECTION_TANGENT,
+)
+from .events import _events, _g
+from .problem import _corrector, _defect, _jacobian, _Problem, _scale_at
+
+
+class _Driver:
+    """Holds the compiled corrector's inputs and the branch being built."""
+
+    def __init__(self, prob, method, bounds):
+        self.prob, self.method = prob, method
+        self.lo, self.hi = (b / float(prob.pscale) for b in bounds)
+
+    def solve(self, z_pred, t_prev, patient=False):
+        """The corrector from ``z_pred`` on the hyperplane normal to ``t_prev``, now
+        (``patient``: the whole Newton budget, for a first orbit from a far guess)."""
+        return self.point(*_corrector(self.prob, jnp.asarray(z_pred), jnp.asarray(t_prev),
+                                      self.method.tol, self.method.newton_steps,
+                                      jnp.asarray(patient)))
+
+    def point(self, z, t, ss, sec):
+        """A corrector's output as a branch point (numpy): ``xi`` its internal state on the
+        driver's section, ``x0`` at ``t = 0``, ``sec`` its ``Section``."""
+        ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
+        z = np.asarray(z)
+        return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, xi=z[:-1] * np.asarray(self.prob.s0),
+                    x0=sec.at_zero, mult=np.asarray(ss.multipliers),
+                    ok=int(ss.status) == Status.SUCCESS)
+
+    def resection(self, point):
+        """Move the branch's Poincaré section to where the orbit at ``point`` flies farthest
+        from the contact walls, once the clearance at the current one has fallen below
+        ``RESECTION`` of that (a generator of one corrector request, see ``_follow``):
+        the point's state there, corrected at its parameter value, gives the unknowns and the
+        tangent in the new section (oriented by the parameter's direction, so not near a
+        fold: ``|t_p| >= RESECTION_TANGENT``).  Returns the point in the new unknowns, or
+        ``point`` where nothing is to be moved or the correction failed."""
+        sec, tp = point["sec"], float(point["t"][-1])
+        if not (sec.least_clearance <= 0 < sec.best_clearance     # an impacting orbit
+                and sec.clearance < RESECTION * sec.best_clearance
+                and abs(tp) >= RESECTION_TANGENT):
+            return point
+        old = self.prob
+        self.prob = dataclasses.replace(old, section=jnp.asarray(int(sec.best)))
+        z = np.append(sec.best_state / np.asarray(self.prob.s0), point["z"][-1])
+        e = np.zeros_like(z)
+        e[-1] = np.sign(tp)
+        c = yield (self, z, e, False)
+        size = np.max(np.abs(point["x0"]))
+        if c["ok"] and np.max(np.abs(c["x0"] - point["x0"])) < RESECTION_SAME * size:
+            # the same orbit: its statistics and count as the point's
+            c["ss"] = dataclasses.replace(c["ss"], iterations=point["ss"].iterations,
+                                          residual=point["ss"].residual)
+            return self.rescale(c)
+        self.prob = old
+        return point
+
+    def rescale(self, point):
+        """Rescale the state unknowns to the orbit at ``point`` (its state over the state
+        scale there, at least 1): steps and tolerances then measure changes relative to
+        the orbit's size, as it grows through a resonance.  The compiled corrector is
+        reused (the scale is an array input).  Returns ``point`` in the new unknowns."""
+        s_old = np.asarray(self.prob.s0)
+        sc = np.asarray(_scale_at(self.prob, jnp.asarray(point["z"][-1])))
+        s_new = sc * max(1.0, float(np.max(np.abs(point["xi"] / sc))))
+        self.prob = eqx.tree_at(lambda q: q.s0, self.prob, jnp.asarray(s_new))
+        z = np.append(point["xi"] / s_new, point["z"][-1])
+        t = np.append(point["t"][:-1] * s_old / s_new, point["t"][-1])
+        return dict(point, z=z, t=t / np.linalg.norm(t))
+
+    def locate(self, kind, a, h):
+        """Illinois regula falsi on the arclength ``σ ∈ [0, h]`` from point ``a`` along its
+        tangent for a zero of the test function of ``kind`` (a generator of corrector
+        requests, see ``_follow``)."""
+        lo, hi = 0.0, h
+        glo, ghi = _g(kind, a), None
+        b = yield (self, a["z"] + h * a["t"], a["t"], False)
+        ghi = _g(kind, b)
+        best, evals, side = b, 1, 0
+        if not (np.isfinite(glo) and np.isfinite(ghi)) or glo * ghi > 0:
+            return best, evals, False
+        g_start = max(abs(glo), abs(ghi))
+        converged = False
+        while evals < 60:
+            s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
+            if not lo < s < hi:
+                s = 0.5 * (lo + hi)
+            p = yield (self, a["z"] + s * a["t"], a["t"], False)
+            evals += 1
+            if not p["ok"]:
+                break
+            gp = _g(kind, p)
+            best = p
+            if not np.isfinite(gp):
+                break
+            if gp * ghi < 0:
+                lo, glo = hi, ghi
+                hi, ghi = s, gp
+                side = 0
+            else:
+                hi, ghi = s, gp
+                if side == -1:
+                    glo *= 0.5
+                side = -1
+            if gp == 0.0:
+                converged = True
+                break
+            if abs(hi - lo) <= self.method.locate_tol:
+                # a bracket shrunk onto a jump of the test function (a grazing corner,
+                # where the multipliers leap across the circle) is not a located zero
+                converged = min(abs(glo), abs(ghi)) <= JUMP_TOL * g_start
+                break
+        return best, evals, converged
+
+
+def _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps):
+    # the integrator is chosen at the lowest frequency of the bounds in an omega continuation
+    if parameter == "omega":
+        forcing = forcing.with_omega(lo)
+    return make_config(system, forcing, solver, rtol, atol, max_steps)
+
+
+def _axis(prob, direction):
+    """The parameter's unit direction in the unknowns (the first point's hyperplane)."""
+    e = np.zeros(prob.s0.shape[0] + 1)
+    e[-1] = 1.0 if direction == "up" else -1.0
+    return e
+
+
+def _bar(total, parameter, progress):
+    """A tqdm bar over branch points (a context manager)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=f"continuation in {parameter}", disable=not progress)
+
+
+def _branch(points, bifs, termination, drv, value0, system):
+    steady = jax.tree_util.tree_map(lambda *a: np.stack(a), *[q["ss"] for q in points])
+    pscale = float(drv.prob.pscale)
+    values = np.array([q["z"][-1] * pscale if "z" in q else value0 for q in points])
+    return Branch(parameter=drv.prob.parameter, values=values, steady=nan_where_failed(steady),
+                  bifurcations=tuple(bifs), period_multiple=drv.prob.n,
+                  termination=termination, dof_names=tuple(system.output_names),
+                  signals=signals_of(system))
+
+
+def _first_orbit(drv, guesses, e):
+    """The first orbit that Newton reaches from one of ``guesses`` (tried in turn; at least
+    one) on the hyperplane normal to ``e``, or the last failed one; a generator of corrector
+    requests like ``_follow``."""
+    for z0 in guesses:
+        point = yield (drv, z0, e, True)
+        if point["ok"]:
+            break
+    return point
+
+
+def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETURNS,
+                   lanes=None):
+    """First guesses from a trajectory marched from each ``z0`` (one vmapped solve for all
+    the drivers): the states after which it came closest to returning ``n`` periods later
+    (distances scaled by the spread of the samples; the first ``CLOSE_RETURN_SKIP`` samples
+    are transient and left out; one guess per near passage; none where the march failed).
+
+    ``_periodic.marching.march`` keeps the single closest period-1 return of a
+    march that never settles, for ``steady_state``'s retry (march from rest, then shoot:
+    what ``continuation`` falls back on); this one keeps several, of period ``n``,
+    for all the starts of a band in one program, without marching's settling tests and
+    Floquet solve (``steady_state`` there would compile a program of its own per call).
+
+    The marches run as ``lanes`` lanes (padded by repeating the first: every call of a band
+    compiles one program), split over the local devices (the Hertz band's fill passes: 8
+    marches 2.4 s on one CPU device)."""
+    prob = drivers[0].prob
+    k = len(drivers)
+    size = max(k, lanes or k)
+    parts = device_parts(size)
+    pad = [0] * (size - k)
+    s0 = np.stack([np.asarray(d.prob.s0) for d in drivers])
+    z = np.stack(z0s)
+    with one_blas_thread(parts):
+        ys, st = jax.tree_util.tree_map(np.asarray, _march_many(
+            prob, s0[list(range(k)) + pad], z[list(range(k)) + pad], periods, parts))
+    out = []
+    for y, s, z0 in zip(ys[:k, CLOSE_RETURN_SKIP:], st[:k], z0s):
+        picks = []
+        if s == Status.SUCCESS and np.all(np.isfinite(y)):
+            d = np.max(np.abs(np.diff(y, axis=0)) / (np.std(y, axis=0) + 1e-12), axis=1)
+            for j in np.argsort(d):
+                if all(abs(j - k) > 1 for k in picks):
+                    picks.append(j)
+                if len(picks) == count:
+                    break
+        out.append([np.append(y[j], z0[-1]) for j in picks])
+    return out
+
+
+@eqx.filter_jit
+def _march_many(prob, s0, z0, periods, ndev=1):
+    """``_Problem.samples`` vmapped over state scales and starting points, the lanes
+    split over ``ndev`` local devices (``lanes_on_devices``)."""
+    def one(prob, s, z):
+        return dataclasses.replace(prob, s0=s).samples(z, periods)
+
+    return lanes_on_devices(one, prob, s0, z0, ndev=ndev)
+
+
+def _follow(drv, first, rejoin, locate, bar, defer=False):
+    """Follow the branch from the point ``first`` until it ends; a generator: it yields
+    corrector requests ``(driver, z_pred, t_prev, patient)``, is sent the point solved for
+    each and returns ``(points, bifurcations, termination)`` (``_run`` serves it one
+    request at a time, ``_run_batched`` many branches' requests in one vmapped call).
+    ``defer``: the bifurcations to locate are returned as the arguments of
+    ``_bifurcation`` (a copy of the driver as it was), for the caller to locate them
+    all together (``band_continuation``), instead of one after the other here, the
+    branch's other steps waiting."""
+    method = drv.method
+    points = [(yield from drv.resection(drv.rescale(first))) if first["ok"] else first]
+    bifs = []
+    termination = "start_failed" if not first["ok"] else None
+    h = method.step
+    parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
+    bar.update(1)
+    while termination is None:
+        if len(points) >= method.max_points:
+            termination = "max_points"
+            break
+        a = points[-1]
+        b = yield (drv, a["z"] + h * a["t"], a["t"], False)
+        turn = float(np.clip(b["t"] @ a["t"], -1.0, 1.0)) if b["ok"] else -1.0
+        # a corner (the tangent turning abruptly where a contact starts to graze: the flow's
+        # Jacobian varies like the square root of the distance to grazing) is accepted once
+        # the step is below step / CORNER_REDUCTION and the corrector still converges
+        sharp = (b["ok"] and math.acos(turn) > method.max_angle
+                 and h > method.step / CORNER_REDUCTION)
+        if not b["ok"] or sharp:
+            if h <= method.min_step * (1 + 1e-12):
+                termination = "step_collapse"
+                break
+            h = max(0.5 * h, method.min_step)
+            continue
+        p_b = b["z"][-1]
+        if not drv.lo <= p_b <= drv.hi:
+            # land on the bound: a natural-parameter corrector from the interpolated point
+            bound = drv.hi if p_b > drv.hi else drv.lo
+            w = (bound - a["z"][-1]) / (p_b - a["z"][-1])
+            zb = a["z"] + w * (b["z"] - a["z"])
+            zb[-1] = bound
+            e = np.zeros_like(zb)
+            e[-1] = np.sign(p_b - a["z"][-1])
+            c = yield (drv, zb, e, False)
+            if c["ok"]:
+                c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
+                b = c
+            termination = "bounds"
+        for kind in _events(a, b):
+            args = (copy.copy(drv), kind, a, b, len(points) - 1, locate,
+                    float(np.linalg.norm(b["z"] - a["z"])))
+            bifs.append(args if defer and locate else (yield from _bifurcation(*args)))
+        points.append(b)
+        bar.update(1)
+        bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
+        if rejoin is not None and rejoin(b["x0"], b["z"][-1]):
+            termination = "rejoined"
+            break
+        s_now = np.asarray(drv.prob.s0)
+        back = np.append((b["x0"] - points[0]["x0"]) / s_now, b["z"][-1] - points[0]["z"][-1])
+        if len(points) > 10 and np.linalg.norm(back) < 0.5 * h:
+            termination = "closed"
+            break
+        points[-1] = drv.rescale(b)
+        if termination is None and len(points) < method.max_points:
+            points[-1] = yield from drv.resection(points[-1])
+        it = int(b["ss"].iterations)
+        if it <= 3:
+            h = min(1.5 * h, method.max_step)
+        elif it >= 6:
+            h = max(0.6 * h, method.min_step)
+    return points, bifs, termination
+
+
+def _run(gen):
+    """Serve one branch's corrector requests one at a time (the compiled corrector)."""
+    try:
+        request = next(gen)
+        while True:
+            request = gen.send(request[0].solve(*request[1:]))
+    except StopIteration as stop:
+        return stop.value
+
+
+@eqx.filter_jit
+def _corrector_many(prob, s0, section, z_pred, t_prev, patient, tol, newton_steps, ndev=1):
+    """``_corrector`` vmapped over the branches' state scales, sections, predictors,
+    hyperplanes and patience (the system, forcing and parameter scale shared), the lanes
+    split over ``ndev`` local devices (``lanes_on_devices``)."""
+    def one(prob, s, j, z, t, pa):
+        return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol, newton_steps,
+                          pa)
+
+    return lanes_on_devices(one, prob, s0, section, z_pred, t_prev, patient, ndev=ndev)
+
+
+def _run_batched(gens, prob, method, lanes=None):
+    """Serve many branches' corrector requests together: each round, one request from
+    each of the first ``lanes`` branches still going (default one lane per branch), solved
+    in one vmapped call of ``lanes`` lanes or, once no more than a quarter of that is
+    pending, of that many (padded by repeating a request: the ends of branches do not
+    recompile; callers that batch several phases give them all the same ``lanes``: one
+    compilation per batch size, ~5 s each on the hard-contact scenes).  With several local
+    devices a batch of at least two lanes per device is split into equal parts, one per
+    device, in one SPMD program (``lanes_on_devices``): the Kelvin–Voigt band of
+    scripts/benchmark_hard_contacts.py takes 47.8 s on two CPU devices against 59 s on one.
+    One SPMD program traces the corrector's Jacobian integration once, where a program per
+    device traces it per device (the first 16-lane call: 6.6 s against 10.8 s)."""
+    lanes = len(gens) if lanes is None else lanes
+    # the few branches snaking through folds, or locating bifurcations, go on for many more
+    # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
+    # on 60 rounds of 4 branches padded to 16 before the smaller batches): the batch is
+    # cut to a quarter while no more than that is pending.  A half size in between cost
+    # more compilation than it saved (the Kelvin-Voigt band on 2 CPU devices, one machine:
+    # sizes 16/8/4 65.6 s, 16/4 60.9 and 62.1 s, 16/2 65.0 s, 16 alone 77.4 s, the same
+    # 606 points; the Hertz band 123.9 s and 123.1 s)
+    sizes = [lanes] + ([lanes // 4] if lanes >= 8 else [])
+    results = [None] * len(gens)
+    pending = {}
+    for i, g in enumerate(gens):
+        try:
+            pending[i] = next(g)
+        except StopIteration as stop:       # a branch that asks for nothing (start_failed)
+            results[i] = stop.value
+    while pending:
+        idx = list(pending)[:sizes[0]]          # more requests than lanes: the first ones
+        size = min(z for z in sizes if z >= len(idx))
+        reqs = [pending[i] for i in idx] + [pending[idx[0]]] * (size - len(idx))
+        s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
+        sec = np.stack([np.asarray(r[0].prob.section) for r in reqs])
+        zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
+        pa = np.asarray([bool(r[3]) for r in reqs])
+        parts = device_parts(size)
+        with one_blas_thread(parts):
+            out = jax.tree_util.tree_map(np.asarray, _corrector_many(
+                prob, s0, sec, zp, tp, pa, method.tol, method.newton_steps, parts))
+        for j, i in enumerate(idx):
+            point = pending[i][0].point(*jax.tree_util.tree_map(lambda a, j=j: a[j], out))
+            try:
+                pending[i] = gens[i].send(point)
+            except StopIteration as stop:
+                results[i] = stop.value
+                del pending[i]
+    return results
+
+
+def _bifurcation(drv, kind, a, b, index, locate, h):
+    if locate:
+        p, evals, ok = yield from drv.locate(kind, a, h)
+    else:
+        p, evals, ok = (a if abs(_g(kind, a)) < abs(_g(kind, b)) else b), 0, False
+    ss = p["ss"]
+    return Bifurcation(kind=kind, value=float(p["z"][-1] * drv.prob.pscale),
+                       amplitude=float(ss.amplitude), state=np.asarray(ss.state),
+                       multipliers=np.asarray(ss.multipliers), index=index,
+                       period_multiple=drv.prob.n, located=bool(ok), evaluations=evals)
+
+
+def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
+    """The first point of the period-``2n`` branch born at the period doubling ``bif``, and
+    the test that it has rejoined the period-``n`` branch."""
+    n1 = bif.period_multiple
+    prob1 = _Problem(system=system, forcing=forcing, s0=s0, pscale=jnp.asarray(pscale), cfg=cfg,
+                     parameter=parameter, n=n1)
+    x_star = np.asarray(system.to_internal(jnp.asarray(bif.state))) / np.asarray(s0)
+    z_star = np.append(x_star, p0)
+    J = np.asarray(_jacobian(prob1, jnp.asarray(z_star)))
+    m = J.shape[0]
+    mu, vecs = np.linalg.eig(J[:, :m] + np.eye(m))
+    v = np.real(vecs[:, np.argmin(np.abs(mu + 1.0))])
+    v = v / np.linalg.norm(v)
+    tv = np.append(v, 0.0)
+    first = None
+    for delta in (0.02, 0.05, 0.1, 0.01, 0.005):
+        cand = drv.solve(z_star + delta * tv, tv)
+        # a genuine period-2n orbit, not the period-n one it branched from
+        if cand["ok"] and float(_defect(prob1, jnp.asarray(cand["z"]))) > 1e3 * drv.method.tol:
+            first = cand
+            break
+    if first is None:
+        first = dict(ss=jax.tree_util.tree_map(np.asarray, cand["ss"]), ok=False, z=cand["z"],
+                     t=cand["t"], mult=cand["mult"])
+        first["ss"] = eqx.tree_at(lambda s: s.status, first["ss"],
+                                  np.asarray(Status.NO_CONVERGENCE))
+    d_first = float(_defect(prob1, jnp.asarray(first["z"]))) if first["ok"] else 0.0
+
+    def rejoined(x0, p):
+        z = np.append(x0 / np.asarray(s0), p)
+        return float(_defect(prob1, jnp.asarray(z))) < 0.05 * d_first
+
+    return first, rejoined

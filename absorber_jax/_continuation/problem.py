@@ -1,0 +1,200 @@
+"""The extended system of a continuation (the period map and the parameter as one
+unknown vector, scaled), its tangent, corrector, Jacobian and defect."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._core.status import Status
+from .._integration.flow import (
+    Config,
+    accurate_tangents,
+    integrate_flow,
+    period_map,
+    state_scale,
+)
+from .._periodic.orbit import (
+    SAMPLES_PER_PERIOD,
+    finish_orbit,
+)
+from .._systems.base import AbstractSystem
+from .._systems.forcing import AbstractPeriodicForcing
+from .._systems.params import replace_params
+from .constants import FORCING_PARAMETERS, PATIENT_GROWTH
+
+
+class _Problem(eqx.Module):
+    """The shooting residual in the continuation's scaled unknowns ``z = (x, p)``, ``x``
+    the orbit's state on the Poincaré section ``section`` samples (of
+    ``SAMPLES_PER_PERIOD`` a forcing period) after ``t = 0``."""
+
+    system: AbstractSystem
+    forcing: AbstractPeriodicForcing
+    s0: jax.Array
+    pscale: jax.Array
+    cfg: Config
+    parameter: str = eqx.field(static=True)
+    n: int = eqx.field(static=True)
+    section: jax.Array = eqx.field(default_factory=lambda: jnp.asarray(0))
+
+    def at(self, p):
+        """(system, forcing) at the scaled parameter ``p``."""
+        return _set_value(self.system, self.forcing, self.parameter, p * self.pscale)
+
+    def in_section(self, p):
+        """(system, forcing seen from the section) at the scaled parameter ``p``."""
+        sysp, forcp = self.at(p)
+        phase = 2 * jnp.pi * self.section / SAMPLES_PER_PERIOD
+        return sysp, forcp.at_phase(phase)
+
+    def _in_flow(self, z):
+        """(system, forcing from the section) at ``z``'s parameter, the flow's state scale
+        there and ``z``'s state in it (flow states ``y`` are ``y * sc / s0`` in the
+        unknowns)."""
+        sysp, forcp = self.in_section(z[-1])
+        sc = state_scale(sysp, forcp)
+        return sysp, forcp, sc, z[:-1] * self.s0 / sc
+
+    def residual(self, z):
+        sysp, forcp, sc, x = self._in_flow(z)
+        xn, st = period_map(sysp, forcp, x, self.n, self.cfg)
+        return xn * sc / self.s0 - z[:-1], st
+
+    def samples(self, z, periods):
+        """The unknowns' states after each ``n`` forcing periods for ``periods`` times from
+        ``z`` (at its parameter), and the integrator's status."""
+        sysp, forcp, sc, x = self._in_flow(z)
+        ts = jnp.arange(1, periods + 1) * (self.n * forcp.period)
+        ys, st = integrate_flow((sysp, forcp), x, ts[-1], ts,
+                                cfg=self.cfg.over_periods(self.n * periods))
+        return ys * sc / self.s0, st
+
+
+def _set_value(system, forcing, name, value):
+    if name == "omega":
+        return system, forcing.with_omega(value)
+    if name == "amplitude":
+        return system, forcing.with_amplitude(value)
+    return replace_params(system, {name: value}, check=False), forcing
+
+
+def _get_value(system, forcing, name):
+    if name in FORCING_PARAMETERS:
+        return float(getattr(forcing, name))
+    from .._systems.params import get_param
+
+    return float(get_param(system, name))
+
+
+def _evaluate(prob, z):
+    def f(z):
+        r, st = prob.residual(z)
+        return r, (r, st)
+
+    J, (r, st) = jax.jacfwd(f, has_aux=True)(z)
+    bad = (st != Status.SUCCESS) | ~jnp.all(jnp.isfinite(r)) | ~jnp.all(jnp.isfinite(J))
+    return jnp.where(jnp.isfinite(J), J, 0.0), jnp.where(jnp.isfinite(r), r, 0.0), st, bad
+
+
+def _tangent(J, t_prev):
+    """Unit null vector of ``J`` (``n × (n+1)``) oriented along ``t_prev``."""
+    A = jnp.concatenate([J, t_prev[None]], axis=0)
+    e = jnp.zeros(A.shape[0]).at[-1].set(1.0)
+    t = jnp.linalg.lstsq(A, e)[0]
+    t = t / jnp.linalg.norm(t)
+    return t * jnp.where(t @ t_prev < 0, -1.0, 1.0)
+
+
+@eqx.filter_jit
+def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
+    """Newton on ``[Φ(z) - x; t_prev·(z - z_pred)] = 0`` from ``z_pred``; returns the point,
+    the new tangent, the point's ``SteadyState`` (its iterations included) and its
+    ``Section``.
+
+    Every Jacobian is integrated with steps controlled on the tangents too
+    (``_integration.flow.accurate_tangents``): forward mode through steps chosen for the
+    state alone differentiates the discrete flow, whose Jacobian across a stiff contact is
+    off by up to ~1e-3 in the multipliers; the tangent-controlled one costs about the same
+    per evaluation (Kelvin–Voigt 2e4 scene at 44 rad/s: 21 vs 22 ms), so the last Newton
+    iterate's Jacobian gives the tangent and the multipliers with no further solve, and one
+    integrator is compiled instead of two."""
+    prob = dataclasses.replace(prob, cfg=accurate_tangents(prob.cfg))
+
+    def newton_step(z, J, r):
+        A = jnp.concatenate([J, t_prev[None]], axis=0)
+        rhs = -jnp.concatenate([r, (t_prev @ (z - z_pred))[None]])
+        return jnp.linalg.lstsq(A, rhs)[0]
+
+    def cond(c):
+        return ~c[-1]
+
+    def body(c):
+        # ``k`` Newton steps taken before this evaluation; the first pass evaluates the
+        # predictor itself (its step is zero: ``J`` and ``r`` start at zero), so the
+        # Jacobian's integration is traced and compiled once, not twice
+        z, J, r, st, bad, k, res_prev, res_prev2, res_min, done = c
+        z = z + newton_step(z, J, r)
+        J, r, st, bad = _evaluate(prob, z)
+        res = jnp.max(jnp.abs(r))
+        # a residual that has not halved over the last two steps is outside Newton's basin:
+        # stop there (the step is halved and tried again) rather than spend the budget, which
+        # a batch of branches (band_continuation) would wait for.  Over two steps, not one:
+        # on strongly unstable orbits the residual often grows at the second step and then
+        # falls quadratically (the Kelvin-Voigt scene of scripts/benchmark_hard_contacts.py
+        # at 28.47 rad/s, |mu| = 50: 4e-3, 1.8e-4, 3.2e-4, 2.9e-6, 1.3e-8), and a one-step
+        # test there halved the arclength step every other point.  A first orbit
+        # (``patient``: its guess may be far) is given up only where the residual has grown
+        # PATIENT_GROWTH times over the least so far
+        stalled = jnp.where(patient, res > PATIENT_GROWTH * res_min,
+                            (k >= 2) & (res > 0.5 * res_prev2))
+        # at least one Newton step (a predictor within tolerance would otherwise be kept
+        # with an error of order tol)
+        done = bad | ((k >= 1) & (res <= tol)) | (k >= newton_steps) | stalled
+        return z, J, r, st, bad, k + 1, res, res_prev, jnp.minimum(res, res_min), done
+
+    n = z_pred.shape[0] - 1
+    inf = jnp.asarray(jnp.inf)
+    z, J, r, st, bad, k, _, _, _, _ = jax.lax.while_loop(
+        cond, body, (z_pred, jnp.zeros((n, n + 1)), jnp.zeros(n), jnp.asarray(Status.SUCCESS),
+                     jnp.asarray(False), jnp.asarray(0), inf, inf, inf, jnp.asarray(False)))
+    k = k - 1
+    res = jnp.max(jnp.abs(r))
+    ok = ~bad & (res <= tol)
+    # converged: one more Newton step with the Jacobian at hand, not evaluated again (the
+    # residual is nonlinear in the parameter even on a linear structure, and a residual just
+    # below tol can mean a state error of tol / (1 - |μ|) on a lightly damped orbit; the
+    # step leaves ~tol²).  The tangent and the multipliers are read off that Jacobian, a
+    # step of order tol away: a Jacobian of their own would cost one more evaluation per
+    # point (3 instead of 2 on most points of a branch).
+    z = jnp.where(ok, z + newton_step(z, J, r), z)
+    status = jnp.where(st != Status.SUCCESS, st,
+                       jnp.where(bad, Status.NONFINITE,
+                                 jnp.where(ok, Status.SUCCESS, Status.NO_CONVERGENCE)))
+    t = _tangent(J, t_prev)
+    mult = jnp.linalg.eigvals(J[:, :n] + jnp.eye(n))
+    sysp, forcp = prob.in_section(z[-1])
+    sc = state_scale(sysp, forcp)
+    ss, sec = finish_orbit(sysp, forcp, z[:-1] * prob.s0 / sc, prob.n, prob.cfg, status, res, k,
+                      n_cap=prob.n, multipliers=mult, section=prob.section)
+    return z, t, ss, sec
+
+
+@eqx.filter_jit
+def _scale_at(prob, p):
+    return state_scale(*prob.at(p))
+
+
+@eqx.filter_jit
+def _jacobian(prob, z):
+    return _evaluate(prob, z)[0]
+
+
+@eqx.filter_jit
+def _defect(prob, z):
+    """``|Φ(x) - x|∞`` of the period-``prob.n`` map at ``z``."""
+    r, st = prob.residual(z)
+    return jnp.where(st == Status.SUCCESS, jnp.max(jnp.abs(r)), jnp.inf)

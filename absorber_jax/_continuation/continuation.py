@@ -53,11 +53,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import check_scalar, check_state, require_x64
+from .._core.legacy import no_more
 from .._core.status import Status
 from .._integration.flow import (
     state_scale,
 )
-from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
 from .._integration.settings import integrator_from
 from .._periodic.shooting import Shooting
 from .._periodic.steady import check_system_and_forcing, steady_state
@@ -140,11 +140,8 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                          f"bounds ({lo:g}, {hi:g})")
     check_state("guess", guess, system.num_states)
 
-    integ = integrator_from(integrator, "periodic", "continuation",
-                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
-    if legacy:
-        raise TypeError(f"continuation() got an unexpected keyword argument "
-                        f"{next(iter(legacy))!r}")
+    integ = integrator_from(integrator, "periodic", "continuation", legacy)
+    no_more("continuation", legacy)
     solver, rtol, atol, max_steps = integ.solver, integ.rtol, integ.atol, integ.max_steps
     cfg = _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps)
     s0 = state_scale(system, forcing)
@@ -239,11 +236,8 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
             raise ValueError(f"starts must lie inside bounds ({lo:g}, {hi:g}), got {starts!r}")
     if not isinstance(fill, int) or isinstance(fill, bool) or fill < 0:
         raise ValueError(f"fill must be a non-negative integer, got {fill!r}")
-    integ = integrator_from(integrator, "periodic", "band_continuation",
-                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
-    if legacy:
-        raise TypeError(f"band_continuation() got an unexpected keyword argument "
-                        f"{next(iter(legacy))!r}")
+    integ = integrator_from(integrator, "periodic", "band_continuation", legacy)
+    no_more("band_continuation", legacy)
     solver, rtol, atol, max_steps = integ.solver, integ.rtol, integ.atol, integ.max_steps
     cfg = _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps)
     base = _Problem(system=system, forcing=forcing, s0=state_scale(system, forcing),

@@ -15,3 +15,10 @@ def moved(where: str, given: dict, form: str) -> None:
     args = ", ".join(f"{k}={v!r}" for k, v in given.items())
     warnings.warn(f"{where}({', '.join(f'{k}=...' for k in given)}) is deprecated: pass "
                   f"{form.format(args)}", DeprecationWarning, stacklevel=4)
+
+
+def no_more(where: str, legacy: dict) -> None:
+    """Raise the ``TypeError`` Python would for keywords that nothing took."""
+    if legacy:
+        raise TypeError(f"{where}() got an unexpected keyword argument "
+                        f"{next(iter(legacy))!r}")

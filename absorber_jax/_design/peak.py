@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.legacy import no_more
 from .._core.status import Status
 from .._integration.flow import state_scale
 from .._integration.settings import integrator_from
@@ -413,11 +414,9 @@ def exact_peak(system, band, *, amplitude, params=(), objective=None, method=Non
                          f"{type(obj).__name__}")
     obj = legacy_objective(obj, "exact_peak", legacy)
     method = design_method(method, "exact_peak", legacy, default_tol=1e-8)
-    integ = integrator_from(integrator, "design", "exact_peak",
-                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
-    if legacy:
-        raise TypeError(f"exact_peak() got an unexpected keyword argument "
-                        f"{next(iter(legacy))!r}")
+    integ = integrator_from(integrator, "design", "exact_peak", legacy,
+                            fields=("solver", "rtol", "atol"))
+    no_more("exact_peak", legacy)
     return exact_peak_of(system, band, amplitude=amplitude, params=params, n_freq=obj.n_freq,
                          peaks=obj.peaks, tol=method.tol, rtol=integ.rtol, atol=integ.atol,
                          newton_steps=method.newton_steps, solver=integ.solver,

@@ -18,6 +18,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.legacy import no_more
 from .._core.status import Status
 from .._integration.settings import Integrator, integrator_from
 from .._periodic.attractors import attractors
@@ -106,11 +107,9 @@ def robust_peak(system, band, *, amplitude, params=(), objective=None, method=No
                          f"{type(obj).__name__}")
     obj = legacy_objective(obj, "robust_peak", legacy, renamed={"samples": "probe_samples"})
     method = design_method(method, "robust_peak", legacy)
-    integ = integrator_from(integrator, "design", "robust_peak",
-                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
-    if legacy:
-        raise TypeError(f"robust_peak() got an unexpected keyword argument "
-                        f"{next(iter(legacy))!r}")
+    integ = integrator_from(integrator, "design", "robust_peak", legacy,
+                            fields=("solver", "rtol", "atol"))
+    no_more("robust_peak", legacy)
     return robust_peak_of(system, band, amplitude=amplitude, params=params, n_freq=obj.n_freq,
                           peaks=obj.peaks, probes=obj.probes, samples=obj.probe_samples,
                           spread=obj.spread, seed=obj.seed, max_periods=obj.max_periods,

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import check_scalar, require_x64
-from .._core.legacy import moved
+from .._core.legacy import moved, no_more
 from .._core.status import Status
 from .._integration.settings import Integrator, integrator_from
 from .._periodic.marching import Marching
@@ -114,11 +114,9 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
         SmoothPeak() if objective == "amplitude" else as_objective(objective, "value_and_grad"))
     obj = legacy_objective(obj, "value_and_grad", legacy, options=("softness",))
     method = design_method(method, "value_and_grad", legacy)
-    integ = integrator_from(integrator, "design", "value_and_grad",
-                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
-    if legacy:
-        raise TypeError(f"value_and_grad() got an unexpected keyword argument "
-                        f"{next(iter(legacy))!r}")
+    integ = integrator_from(integrator, "design", "value_and_grad", legacy,
+                            fields=("solver", "rtol", "atol"))
+    no_more("value_and_grad", legacy)
     objective, softness = obj.kind, getattr(obj, "softness", 2e-3)
     tol, newton_steps = method.tol, method.newton_steps
     rtol, atol, solver = integ.rtol, integ.atol, integ.solver
@@ -252,8 +250,8 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
     obj = SmoothPeak() if objective == "amplitude" else as_objective(objective, "tune")
     obj = legacy_objective(obj, "tune", legacy)
     method = design_method(method, "tune", legacy)
-    integ = integrator_from(integrator, "design", "tune",
-                            {k: legacy.pop(k, None) for k in ("solver", "rtol", "atol")})
+    integ = integrator_from(integrator, "design", "tune", legacy,
+                            fields=("solver", "rtol", "atol"))
     n_starts = 3
     if "n_starts" in legacy:
         n_starts = legacy.pop("n_starts")
@@ -269,8 +267,7 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
         samples = legacy.pop("confirm_samples", samples)
         moved("tune", {"confirm_points": points, "confirm_samples": samples},
               "confirm=(points, samples)")
-    if legacy:
-        raise TypeError(f"tune() got an unexpected keyword argument {next(iter(legacy))!r}")
+    no_more("tune", legacy)
     opts = dict(n_freq=64, softness=2e-3, peaks=2, modes=True, stability_margin=None,
                 probes=8, probe_samples=16, rounds=3)
     opts.update(obj.options())

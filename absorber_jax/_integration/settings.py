@@ -83,12 +83,14 @@ DEFAULTS = {
 }
 
 
-def integrator_from(integrator, task, where, legacy):
-    """The resolved ``Integrator`` of an entry point: ``integrator`` (or a default
-    one) with the deprecated flat keywords ``legacy`` (``solver``, ``rtol``, ``atol``,
-    ``max_steps``, ``dt0``; ``None`` = not given) filled in, warning for each."""
+def integrator_from(integrator, task, where, legacy, fields=FIELDS):
+    """The resolved ``Integrator`` of an entry point: ``integrator`` (or a default one)
+    with the deprecated flat keywords among ``fields`` popped from ``legacy`` and filled in
+    (a ``DeprecationWarning`` names the new form); an integrator together with such keywords
+    is refused."""
     from .._core.legacy import moved
 
+    legacy = {k: legacy.pop(k) for k in fields if k in legacy}
     given = {k: v for k, v in legacy.items() if v is not None}
     if integrator is None:
         integrator = Integrator()

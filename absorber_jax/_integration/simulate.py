@@ -13,11 +13,11 @@ import numpy as np
 from .._core.checks import check_scalar, check_state, check_time_grid, is_traced, require_x64
 from .._core.custom_types import States, Times
 from .._core.custom_types import Status as StatusArray
+from .._core.legacy import no_more
 from .._core.status import Status, describe, from_diffrax
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractForcing
 from .._systems.scales import warn_scales
-from .settings import FIELDS as INTEGRATOR_FIELDS
 from .settings import integrator_from
 from .stickslip import hybrid_solve
 
@@ -364,10 +364,8 @@ def simulate(
                              "fundamental angular frequency omega [rad/s] (or subclass "
                              "AbstractForcing for a signal that is not periodic)")
         raise ValueError(f"forcing must be a forcing (e.g. Harmonic), got {type(forcing).__name__}")
-    integ = integrator_from(integrator, "simulate", "simulate",
-                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
-    if legacy:
-        raise TypeError(f"simulate() got an unexpected keyword argument {next(iter(legacy))!r}")
+    integ = integrator_from(integrator, "simulate", "simulate", legacy)
+    no_more("simulate", legacy)
     solver, rtol, atol, dt0 = integ.solver, integ.rtol, integ.atol, integ.dt0
     check_scalar("simulate", "t0", t0)
     check_scalar("simulate", "t1", t1, lo=float(t0), lo_open=True)

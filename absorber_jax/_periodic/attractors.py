@@ -45,16 +45,16 @@ import numpy as np
 
 from .._core import tables
 from .._core.checks import check_scalar, require_x64
+from .._core.legacy import no_more
 from .._core.status import Status
 from .._core.units import Signals, signals_of
 from .._integration.flow import flow_along, make_config, state_scale
-from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
 from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
 from .marching import Marching
 from .orbit import SteadyState, _parabolic_peak, closures
-from .steady import check_system_and_forcing, method_from, no_more, solve_point
+from .steady import check_system_and_forcing, method_from, solve_point
 
 # samples per forcing period of the statistics window (at least)
 SAMPLES = 64
@@ -302,8 +302,7 @@ def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, init
                          f"{type(method).__name__}")
     if method.give_up is None:
         method = dataclasses.replace(method, give_up=max(1, method.max_periods // 4))
-    integ = integrator_from(integrator, "periodic", "attractors",
-                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    integ = integrator_from(integrator, "periodic", "attractors", legacy)
     no_more("attractors", legacy)
     n_max = method.n_max
     # the window must show a period-n_max orbit repeating at least once

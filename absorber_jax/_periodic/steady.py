@@ -40,10 +40,9 @@ import jax
 import jax.numpy as jnp
 
 from .._core.checks import check_state, is_traced, require_x64
-from .._core.legacy import moved
+from .._core.legacy import moved, no_more
 from .._core.status import Status
 from .._integration.flow import Config, integrate_flow, make_config, period_map, state_scale  # noqa: F401
-from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
 from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import check_periodic
@@ -132,13 +131,6 @@ def method_from(method, where, legacy, default=None):
     return method
 
 
-def no_more(where, legacy):
-    """Raise the ``TypeError`` Python would for keywords nothing took."""
-    if legacy:
-        raise TypeError(f"{where}() got an unexpected keyword argument "
-                        f"{next(iter(legacy))!r}")
-
-
 def check_system_and_forcing(system, forcing, where="steady_state"):
     if not isinstance(system, AbstractSystem):
         raise ValueError(f"system must be an ImpactAbsorber, FrictionAbsorber or "
@@ -211,8 +203,7 @@ def steady_state(system, forcing, *, method=None, integrator=None, guess=None, f
     require_x64("steady_state")
     check_system_and_forcing(system, forcing)
     method = method_from(method, "steady_state", legacy)
-    integ = integrator_from(integrator, "periodic", "steady_state",
-                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    integ = integrator_from(integrator, "periodic", "steady_state", legacy)
     no_more("steady_state", legacy)
     check_state("guess", guess, system.num_states)
     warn_scales(system, forcing, "steady_state")

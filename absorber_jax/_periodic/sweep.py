@@ -15,12 +15,11 @@ import numpy as np
 from .._core import tables
 from .._core.checks import check_time_grid, require_x64
 from .._core.devices import by_parts, put
-from .._core.legacy import moved
+from .._core.legacy import moved, no_more
 from .._core.progress import PointProgress
 from .._core.status import Status, nan_where_failed
 from .._core.units import Signals, signals_of
 from .._integration.flow import lane_by_lane, large_state, state_scale
-from .._integration.settings import FIELDS as INTEGRATOR_FIELDS
 from .._integration.settings import integrator_from
 from .._integration.simulate import choose_solver
 from .._systems.base import AbstractSystem
@@ -33,7 +32,6 @@ from .steady import (
     make_config,
     march_then_shoot,
     method_from,
-    no_more,
     solve_point,
 )
 
@@ -395,8 +393,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
         raise ValueError(f"omegas must be > 0 [rad/s], got {om[0]:g}")
     amplitude = sweep_shape(amplitude, "frequency_response")
     method = method_from(method, "frequency_response", legacy)
-    integ = integrator_from(integrator, "periodic", "frequency_response",
-                            {k: legacy.pop(k, None) for k in INTEGRATOR_FIELDS})
+    integ = integrator_from(integrator, "periodic", "frequency_response", legacy)
     solver, rtol, atol, max_steps = integ.solver, integ.rtol, integ.atol, integ.max_steps
     chunk_size, shard = legacy.pop("chunk_size", 64), legacy.pop("shard", True)
     if (chunk_size, shard) != (64, True):

@@ -122,11 +122,9 @@ def method_from(method, where, legacy, default=None):
                          f"aj.Shooting(...) or aj.Marching(...), got {type(method).__name__}")
     if given:
         moved(where, given, f"method=aj.{type(method).__name__}({{}})")
+        # as the former keywords did: the options of the other method are not used
         fields = {f.name for f in dataclasses.fields(method)}
-        unknown = sorted(set(given) - fields)
-        if unknown:
-            raise ValueError(f"{where}: {unknown} are not options of "
-                             f"{type(method).__name__}")
+        given = {k: v for k, v in given.items() if k in fields}
         method = dataclasses.replace(method, **given)
     return method
 

@@ -357,7 +357,7 @@ def peak_core(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, n
     One compiled program of ``peaks`` lanes (``evaluate_batch``) serves both the grid,
     evaluated ``peaks`` frequencies at a time, and every Illinois iteration (all slots at
     once): compiled as two programs (the grid's batch and the slots') inside one
-    ``jax.jit``, the hardening oscillator of tests/test_peak.py took 55 s to compile, one
+    ``jax.jit``, the hardening oscillator of tests/design/test_peak.py took 55 s to compile, one
     program alone 21 s; runs are milliseconds there."""
     omegas = np.asarray(omegas, dtype=float)
     guesses = np.asarray(guesses, dtype=float)

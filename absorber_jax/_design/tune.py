@@ -674,7 +674,7 @@ def _minimax(evaluate, u0, steps, hist, progress, callback):
     amplitudes scaled by the starting peak).  Failed slots give no constraint information:
     their value is the largest successful one, their gradient zero.  SLSQP stops once the
     scaled peak changes by less than the shooting tolerance (the evaluations' own accuracy;
-    with ftol 1e-12 the TMD of tests/test_peak.py reached its optimum to 2e-13 in 11
+    with ftol 1e-12 the TMD of tests/design/test_peak.py reached its optimum to 2e-13 in 11
     evaluations, then spent 36 more on steps inside the rounding noise)."""
     from scipy.optimize import minimize
     from tqdm.auto import tqdm

@@ -61,7 +61,8 @@ class Config(eqx.Module):
 # Below it, diffrax ForwardMode (state-controlled steps, ~4x cheaper) is right; above it
 # the stiff direction has decayed in the state, so the state's error estimate lets the steps
 # reach the edge of the explicit stability region, where the O(1) tangent seeded in that
-# direction grows: with state-controlled steps, the stick–slip scene of tests/test_stickslip.py
+# direction grows: with state-controlled steps, the stick–slip scene of
+# tests/integration/test_stickslip.py
 # (smoothed Coulomb eps = 1e-4, 70 rad/s, λT = 2e4) gives |μ| = 1e66 from shooting and 2.8e9
 # from marching on a stable orbit (|μ| = 0.86).
 TANGENT_CONTROL_STEPS_PER_PERIOD = 2.0e3
@@ -224,7 +225,7 @@ def _flow_jvp(primals, tangents, *, cfg):
 # from diffrax ForwardMode (the solve vmapped over the tangent directions): measured on a
 # 64-lane vmapped monodromy of the 44-state 20-DOF building of
 # scripts/benchmark_structure.py, 4.4 s against 7.5 s (same steps, same numbers); on the
-# 12-state 3-storey building with three TMDs of tests/test_structure.py 0.112 s against
+# 12-state 3-storey building with three TMDs of tests/systems/test_structure.py 0.112 s against
 # 0.151 s; on the
 # 5-state Table 1 impact absorber ForwardMode is a little faster (256 lanes: 56 vs 69 ms).
 SENSITIVITY_STATES = 12
@@ -383,8 +384,8 @@ def accurate_tangents(cfg: Config) -> Config:
     Floquet multipliers and continuation tangents use it: forward mode through steps chosen
     for the state alone differentiates the discrete flow, whose Jacobian across a stiff
     contact (a smoothed kink) is off by up to ~1e-3 (measured on the hardening oscillator of
-    tests/test_continuation.py against exact piecewise-linear multipliers: 6e-3 -> 8e-4 for
-    steady_state, 1.8e-3 -> 3e-6 for continuation)."""
+    tests/continuation/test_continuation.py against exact piecewise-linear multipliers: 8e-4
+    against 6e-3 for steady_state, 3e-6 against 1.8e-3 for continuation)."""
     if isinstance(cfg.solver, diffrax.AbstractImplicitSolver):
         return cfg
     return dataclasses.replace(cfg, tangent_control=True)

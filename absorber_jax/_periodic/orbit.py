@@ -203,7 +203,7 @@ FLOQUET_RTOL_COARSE = 1e-5
 # circle (where the stability label depends on it), it is recomputed at FLOQUET_RTOL: the
 # six largest |multipliers| of 16 orbits of that building within 7.5e-7 of rtol 1e-9 (3.2e-8
 # at 1e-7).  The margin is ~120x the coarse error measured on the linear 12-state building
-# (every multiplier within 8e-5 of exp(lambda T), tests/test_structural.py), ~170x that on
+# (every multiplier within 8e-5 of exp(lambda T), tests/systems/test_structural.py), ~170x that on
 # the 44-state building's largest |multiplier|, and ~12x the relative error of the largest
 # on a 12-state building carrying a hard impact damper (Kelvin-Voigt 1e6 N/m on 5 kg, 8
 # impacts per period: |mu| = 1.3146, 1.1e-3 off at 1e-5, 3.7e-5 at 1e-6; on its orbits of

@@ -13,7 +13,7 @@ import pytest
 
 import absorber_jax as aj
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 README = ROOT / "README.md"
 COMMANDS = [

@@ -53,7 +53,7 @@ def _key_numbers(summary):
 
 def _compare_golden(summary):
     """Golden-figure check: the key numbers of the (quick) paper reproduction against values
-    computed once and committed (tests/golden/paper_quick.json).  A change in the physics
+    computed once and committed (tests/io/golden/paper_quick.json).  A change in the physics
     moves them; regenerate deliberately with ABSORBER_JAX_WRITE_GOLDEN=1."""
     now = _key_numbers(summary)
     if os.environ.get("ABSORBER_JAX_WRITE_GOLDEN") == "1":

@@ -8,6 +8,7 @@ one compilation (same system layout, same chunk shape)."""
 import csv
 import json
 import os
+import pathlib
 
 import equinox as eqx
 import numpy as np
@@ -18,7 +19,7 @@ import absorber_jax as aj
 from absorber_jax._io.cli import main
 from absorber_jax._io.scene import SceneSettings, load_scene, scene_from_dict, toml_loads
 
-EXAMPLES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples")
+EXAMPLES = os.path.join(pathlib.Path(__file__).resolve().parents[2], "examples")
 BUILDING = os.path.join(EXAMPLES, "building_tmds.toml")
 BEAM = os.path.join(EXAMPLES, "beam_friction_damper.json")
 N_FREQ = 8

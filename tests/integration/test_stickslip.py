@@ -134,7 +134,8 @@ def test_monodromy_matches_finite_differences_through_the_switches():
     assert np.max(np.abs(J - Jfd)) < 1e-6 * np.max(np.abs(Jfd)) + 1e-8
 
 
-# (N = 4 N, the 70 rad/s case, sticks every cycle; tests/test_reverse.py checks jax.grad there)
+# (N = 4 N, the 70 rad/s case, sticks every cycle; tests/periodic/test_reverse.py checks
+# jax.grad there)
 @pytest.mark.slow
 @pytest.mark.parametrize("N", [2.0])
 def test_gradient_wrt_normal_force_matches_central_differences_in_stick_slip(N):

@@ -23,7 +23,7 @@ from .._periodic.orbit import (
 )
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
-from .._systems.params import replace_params
+from .._systems.params import get_param, replace_params
 from .constants import FORCING_PARAMETERS, PATIENT_GROWTH
 
 
@@ -85,7 +85,6 @@ def _set_value(system, forcing, name, value):
 def _get_value(system, forcing, name):
     if name in FORCING_PARAMETERS:
         return float(getattr(forcing, name))
-    from .._systems.params import get_param
 
     return float(get_param(system, name))
 

@@ -35,13 +35,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.checks import check_scalar, require_x64
 from .._core.legacy import no_more
 from .._core.status import Status
 from .._integration.flow import state_scale
 from .._integration.settings import integrator_from
 from .._periodic.orbit import sample_orbit
-from .._periodic.steady import solve_point
+from .._periodic.steady import check_system_and_forcing, make_config, solve_point
 from .._systems.forcing import Harmonic, at_frequency, sweep_shape
+from .._systems.params import get_param, replace_params
 from .base import Reparam, check_design, design_method, legacy_objective, shooting_for_design
 from .objectives import ExactPeak
 
@@ -302,7 +304,6 @@ def modal_seeds(system, lo, hi):
 
 def design_system(system, names, reparam, u):
     """``system`` with the named parameters at ``reparam.forward(u)``."""
-    from .._systems.params import replace_params
 
     return replace_params(system, dict(zip(names, reparam.forward(u))), check=False)
 
@@ -426,9 +427,6 @@ def exact_peak(system, band, *, amplitude, params=(), objective=None, method=Non
 def exact_peak_of(system, band, *, amplitude, params, n_freq, peaks, tol, rtol, atol,
                   newton_steps, solver, xtol, max_iter, modes) -> BandPeak:
     """``exact_peak`` with its options unpacked."""
-    from .._core.checks import check_scalar, require_x64
-    from .._periodic.steady import check_system_and_forcing, make_config
-    from .._systems.params import get_param
 
     require_x64("exact_peak")
     amplitude = sweep_shape(amplitude, "exact_peak")

@@ -37,9 +37,11 @@ from .._core.checks import check_scalar, require_x64
 from .._core.legacy import moved, no_more
 from .._core.status import Status
 from .._integration.settings import Integrator, integrator_from
+from .._periodic.attractors import attractors
 from .._periodic.marching import Marching
 from .._periodic.shooting import Shooting
-from .._periodic.steady import make_config
+from .._periodic.steady import make_config, steady_state
+from .._periodic.sweep import RETRY_BATCH, frequency_response, retry_chunk
 from .._systems.forcing import Harmonic
 from .._systems.params import get_param, replace_params
 from .base import (
@@ -154,7 +156,6 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
     """Internal-state guesses for a band: the converged states where ``status`` is 0, and
     for the others the orbit found by marching then shooting (the sweep's retry, in
     fixed-size batches: one compilation)."""
-    from .._periodic.sweep import RETRY_BATCH, retry_chunk
 
     p = np.asarray(reparam.forward(u))
     sysp = replace_params(system, dict(zip(names, p)), check=False)
@@ -361,7 +362,6 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
     hist["omegas"] = omegas
     hist["names"] = names
     hist["amplitude_before"] = evaluate.amps_before
-    from .._periodic.sweep import frequency_response
 
     after = frequency_response(tuned, omegas, amplitude=float(amplitude),
                                method=Shooting(tol=tol, newton_steps=newton_steps),
@@ -379,7 +379,6 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
 def _confirm(system, tuned, hist, amplitude, points, samples, solver, rtol, atol):
     """The independent checks of a tuning: marching on ``points`` frequencies before and
     after, and the responses the tuned design settles on at its peak frequency."""
-    from .._periodic.sweep import frequency_response
 
     omegas = hist["omegas"]
     om_c = np.linspace(omegas[0], omegas[-1], min(points, len(omegas)))
@@ -405,7 +404,6 @@ def _confirm(system, tuned, hist, amplitude, points, samples, solver, rtol, atol
 def _settles_on(tuned, omega, designed, amplitude, samples, solver, rtol, atol):
     """March the tuned design from ``samples`` initial states at its peak frequency: the
     responses it settles on, and whether the largest stable one is the designed orbit."""
-    from .._periodic.attractors import attractors
 
     if not np.isfinite(omega):
         return {"omega": math.nan, "attractors": [], "designed": math.nan,
@@ -425,7 +423,6 @@ def _tune_from_starts(system, params, band, starts, n_starts, progress, kw):
     ``n_starts`` designs tuned, the best result returned."""
     import itertools
 
-    from .._periodic.sweep import frequency_response
 
     names = tuple(params)
     if not isinstance(starts, dict) or not starts:
@@ -514,7 +511,6 @@ class _Evaluator:
 
     def _unstable(self, u, res, ok):
         """Slots whose orbit has a multiplier beyond ``1 - margin``."""
-        from .._periodic.steady import steady_state
 
         sysp = design_system(*self.args, u)
         out = np.zeros(len(ok), bool)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import equinox as eqx
 
 from .._core.checks import check_scalar
+from .._core.legacy import moved
 
 
 class Integrator(eqx.Module):
@@ -88,7 +89,6 @@ def integrator_from(integrator, task, where, legacy, fields=FIELDS):
     with the deprecated flat keywords among ``fields`` popped from ``legacy`` and filled in
     (a ``DeprecationWarning`` names the new form); an integrator together with such keywords
     is refused."""
-    from .._core.legacy import moved
 
     legacy = {k: legacy.pop(k) for k in fields if k in legacy}
     given = {k: v for k, v in legacy.items() if v is not None}

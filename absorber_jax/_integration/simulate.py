@@ -15,6 +15,7 @@ from .._core.custom_types import States, Times
 from .._core.custom_types import Status as StatusArray
 from .._core.legacy import no_more
 from .._core.status import Status, describe, from_diffrax
+from .._core.tables import dataframe, trajectory_columns, trajectory_dataset, write_csv
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractForcing
 from .._systems.scales import warn_scales
@@ -225,13 +226,11 @@ class Trajectory(eqx.Module):
         public state (``x1 [m]``, ``v1 [m/s]`` ...), the degrees of freedom that are not
         state components, the coupling force(s) [N], the friction fields and energies when
         present."""
-        from .._core.tables import trajectory_columns, write_csv
 
         write_csv(path, trajectory_columns(self))
 
     def to_dataframe(self):
         """The rows of ``to_csv`` as a ``pandas.DataFrame`` (needs pandas)."""
-        from .._core.tables import dataframe, trajectory_columns
 
         return dataframe(trajectory_columns(self), "Trajectory.to_dataframe")
 
@@ -239,7 +238,6 @@ class Trajectory(eqx.Module):
         """An ``xarray.Dataset`` over ``time`` [s]: each public state component, the degrees
         of freedom (over ``dof``), the observable and the forces with ``units`` and
         ``long_name``; ``status`` with its code names (needs xarray)."""
-        from .._core.tables import trajectory_dataset
 
         return trajectory_dataset(self)
 

@@ -6,6 +6,32 @@ import argparse
 import json
 import sys
 
+from .. import presets
+from .._continuation.continuation import continuation
+from .._continuation.method import PseudoArclength
+from .._core.status import describe, hint
+from .._core.status import name as status_name
+from .._core.tables import attractor_columns, write_csv
+from .._core.units import signals_of, with_unit
+from .._design.objectives import BY_NAME
+from .._design.tune import plot_tuning, tune
+from .._integration.settings import Integrator
+from .._integration.simulate import simulate
+from .._periodic.attractors import attractors, bifurcation_diagram
+from .._periodic.marching import Marching
+from .._periodic.sweep import frequency_response
+from .._systems.forcing import Harmonic
+from .._systems.params import get_param, replace_params, with_params
+from .paper import reproduce_paper
+from .plots import (
+    _sweep_words,
+    mark_failed,
+    plot_bifurcation_diagram,
+    plot_branches,
+    plot_frequency_response,
+)
+from .scene import load_scene
+
 
 def _parse_sets(items):
     out = {}
@@ -18,7 +44,6 @@ def _parse_sets(items):
 
 
 def cmd_reproduce(args):
-    from .paper import reproduce_paper
 
     summary = reproduce_paper(args.out, quick=args.quick)
     print(json.dumps(summary["conclusions"], indent=2))
@@ -45,7 +70,6 @@ def _failure_lines(frfs):
     what failed and what to try (``describe``)."""
     import numpy as np
 
-    from .._core.status import describe
 
     by_code = {}
     for f in frfs:
@@ -67,15 +91,10 @@ def cmd_simulate(args):
 
     import numpy as np
 
-    from .. import presets
-    from .._core.status import describe
-    from .._integration.settings import Integrator
-    from .._integration.simulate import simulate
 
     system, forcing = presets.scene(args.scene)
     sets = _parse_sets(args.set)
     if sets:
-        from .._systems.params import with_params
 
         system = with_params(system, sets)
     tr = simulate(system, forcing, args.t1, integrator=Integrator(solver=args.solver),
@@ -108,8 +127,6 @@ def cmd_simulate(args):
 
 def _steady_scene(args):
     """The scene named by ``--scene`` under a constant harmonic force, with ``--set`` applied."""
-    from .. import presets
-    from .._systems.params import with_params
 
     kw = {"ramp_time": None} if args.scene in presets.FRICTION_SCENES else {}
     system, forcing = presets.scene(args.scene, **kw)
@@ -135,8 +152,6 @@ def cmd_sweep(args):
 
     import numpy as np
 
-    from .._periodic.sweep import frequency_response
-    from .plots import plot_frequency_response
 
     lo, hi, n = _parse_range(args.omega, "--omega")
     system, forcing = _steady_scene(args)
@@ -173,9 +188,6 @@ def cmd_tune(args):
 
     import numpy as np
 
-    from .._core.units import signals_of, with_unit
-    from .._design.objectives import BY_NAME
-    from .._design.tune import plot_tuning, tune
 
     lo, hi, _ = _parse_range(args.band + ":1", "--band")
     system, forcing = _steady_scene(args)
@@ -251,8 +263,6 @@ def _plot_scene_dofs(frfs, dof_names, path, title):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from .._core.units import with_unit
-    from .plots import _sweep_words, mark_failed
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     colors = plt.get_cmap("tab10")
@@ -304,14 +314,6 @@ def cmd_scene(args):
     import jax
     import numpy as np
 
-    from .._core.status import describe, hint
-    from .._core.status import name as status_name
-    from .._core.units import with_unit
-    from .._integration.simulate import simulate
-    from .._periodic.sweep import frequency_response
-    from .._systems.forcing import Harmonic
-    from .._systems.params import get_param, replace_params
-    from .scene import load_scene
 
     t_start = time.perf_counter()
     system, settings = load_scene(args.file)
@@ -471,10 +473,6 @@ def cmd_continue(args):
     import os
     import time
 
-    from .._continuation.continuation import continuation
-    from .._continuation.method import PseudoArclength
-    from .._systems.forcing import Harmonic
-    from .plots import plot_branches
 
     t0 = time.perf_counter()
     system, amplitude, title, sets = _load_system(args)
@@ -487,7 +485,6 @@ def cmd_continue(args):
         if args.parameter == "amplitude":
             amplitude = args.start
         else:
-            from .._systems.params import replace_params
 
             system = replace_params(system, {args.parameter: args.start})
     if omega is None:
@@ -531,19 +528,16 @@ def _load_system(args):
     import os
 
     if args.file:
-        from .scene import load_scene
 
         system, settings = load_scene(args.file)
         amplitude = settings.amplitude
         title = settings.title or os.path.splitext(os.path.basename(args.file))[0]
     else:
-        from .. import presets
 
         system, forcing = presets.scene(args.scene)
         amplitude, title = float(forcing.amplitude), args.scene
     sets = _parse_sets(args.set)
     if sets:
-        from .._systems.params import replace_params
 
         system = replace_params(system, sets)
     if args.amplitude is not None:
@@ -560,12 +554,6 @@ def cmd_attractors(args):
 
     import numpy as np
 
-    from .._core.tables import attractor_columns, write_csv
-    from .._core.units import with_unit
-    from .._periodic.attractors import attractors, bifurcation_diagram
-    from .._periodic.marching import Marching
-    from .._systems.forcing import Harmonic
-    from .plots import plot_bifurcation_diagram
 
     t0 = time.perf_counter()
     system, amplitude, title, sets = _load_system(args)

@@ -25,6 +25,7 @@ import lineax as lx
 import numpy as np
 
 from .._core.status import Status
+from .._core.tables import steady_dataset
 from .._integration.flow import (
     accurate_tangents,
     flat_inputs,
@@ -91,7 +92,6 @@ class SteadyState(eqx.Module):
         """An ``xarray.Dataset`` of this orbit (or batch of orbits, over ``point``): every
         field with ``units`` and ``long_name``, the state and degrees of freedom named and
         the observable and stroke labelled after ``system`` when given (needs xarray)."""
-        from .._core.tables import steady_dataset
 
         return steady_dataset(self, system)
 

@@ -422,74 +422,11 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
     warn_scales(system, [_forcing(amplitude, float(w))
                          for w in om[np.linspace(0, om.size - 1, min(om.size, 16)).astype(int)]],
                 "frequency_response")
-    P = pvals.shape[0]
-    if solver is None or solver == "auto":
-        # one solver serves the whole grid: implicit if any design is stiff at the lowest
-        # frequency (the longest period: the most explicit steps per period)
-        designs = pvals if P <= 256 else np.stack([pvals.min(0), pvals.max(0)])
-        f0 = _forcing(amplitude, float(om[0]))
-        stiff = any(choose_solver(replace_params(system, dict(zip(names, d))), f0,
-                                  rtol=rtol) != "tsit5"
-                    for d in designs) if names else choose_solver(system, f0, rtol=rtol) != "tsit5"
-        solver = "kvaerno5" if stiff else "tsit5"
+    solver = _grid_solver(system, names, pvals, amplitude, om, solver, rtol)
     cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
-    amp = amplitude
-    floquet = bool(floquet)
-    order = om if direction != "down" else om[::-1]
-
-
-    if direction == "parallel":
-        # flatten (design, frequency) into one axis of points
-        W = np.broadcast_to(order[None, :], (P, len(order))).reshape(-1)
-        PV = np.repeat(pvals, len(order), axis=0)
-        total = W.shape[0]
-        size = min(chunk_size, total)
-        ndev = jax.local_device_count() if shard else 1
-        size = int(math.ceil(size / ndev) * ndev)
-        first, rest = ((method.first_pass(FIRST_PASS_NEWTON), method.resume(FIRST_PASS_NEWTON))
-                       if size > SMALL_CHUNK else (method, None))
-        if method.chains:
-            res = _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size,
-                                 ndev, progress, len(order))
-        else:
-            res = _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev,
-                                  progress)
-        res = _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, floquet,
-                                 progress)
-        res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(order)) + a.shape[1:]), res)
-    else:
-        carry = jnp.full((P, system.num_states), jnp.nan)
-        size = min(chunk_size, len(order))
-        out = []
-        pv = jnp.asarray(pvals)
-        bar = PointProgress(P * len(order), f"sweep {direction}", bool(progress))
-        for start in range(0, len(order), size):
-            w = order[start:start + size]
-            pad = size - w.shape[0]
-            if pad:
-                w = np.concatenate([w, np.repeat(w[-1:], pad)])
-            carry, res = _sequential_chunk(system, jnp.asarray(w), amp, pv, carry, cfg, method,
-                                           names, floquet)
-            keep = size - pad
-            out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
-            bar.update(P * keep)
-        bar.bar.close()
-        res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)
-        if direction == "down":
-            res = jax.tree_util.tree_map(lambda a: a[:, ::-1], res)
-        if method.retry:
-            # a point the branch could not be followed to (past a fold, a grazing) is
-            # re-solved by marching from rest then shooting: the sweep jumps to the
-            # attractor there, as a slow physical sweep would
-            flat = jax.tree_util.tree_map(lambda a: np.array(a).reshape((-1,) + a.shape[2:]),
-                                          res)
-            W = np.broadcast_to(om[None, :], (P, len(om))).reshape(-1)
-            PV = np.repeat(pvals, len(om), axis=0)
-            bad = np.flatnonzero(flat.status != Status.SUCCESS)
-            flat = _in_batches(flat, bad, lambda p: retry_chunk(
-                system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
-                floquet), "retry", progress, _retry_batch(system))
-            res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), flat)
+    run = _run_parallel if direction == "parallel" else _run_sequential
+    res = run(system, om, pvals, names, amplitude, cfg, method, bool(floquet), direction,
+              chunk_size, shard, progress)
     squeeze = params is None
     get = (lambda a: a[0]) if squeeze else (lambda a: a)
     return FrequencyResponse(
@@ -499,6 +436,89 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
         direction=direction, dof_names=tuple(system.output_names),
         signals=signals_of(system),
     )
+
+
+def _grid_solver(system, names, pvals, amplitude, om, solver, rtol):
+    """The one solver of a sweep's grid: as given, or (``None``/``"auto"``) implicit if any
+    design is stiff at the lowest frequency (the longest period: the most explicit steps per
+    period)."""
+    if solver is not None and solver != "auto":
+        return solver
+    designs = pvals if pvals.shape[0] <= 256 else np.stack([pvals.min(0), pvals.max(0)])
+    f0 = _forcing(amplitude, float(om[0]))
+    stiff = (any(choose_solver(replace_params(system, dict(zip(names, d))), f0,
+                               rtol=rtol) != "tsit5" for d in designs)
+             if names else choose_solver(system, f0, rtol=rtol) != "tsit5")
+    return "kvaerno5" if stiff else "tsit5"
+
+
+def _run_parallel(system, om, pvals, names, amp, cfg, method, floquet, direction, chunk_size,
+                  shard, progress):
+    """Every (design, frequency) point from its own start: vmapped chunks over the devices
+    (lanes of neighbours with ``Shooting(root="chord")``), then the stragglers resumed and
+    the failures retried.  Returns the results shaped ``(P, F)``."""
+    P = pvals.shape[0]
+    # flatten (design, frequency) into one axis of points
+    W = np.broadcast_to(om[None, :], (P, len(om))).reshape(-1)
+    PV = np.repeat(pvals, len(om), axis=0)
+    total = W.shape[0]
+    size = min(chunk_size, total)
+    ndev = jax.local_device_count() if shard else 1
+    size = int(math.ceil(size / ndev) * ndev)
+    first, rest = ((method.first_pass(FIRST_PASS_NEWTON), method.resume(FIRST_PASS_NEWTON))
+                   if size > SMALL_CHUNK else (method, None))
+    if method.chains:
+        res = _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size,
+                             ndev, progress, len(om))
+    else:
+        res = _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev,
+                              progress)
+    res = _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, floquet,
+                             progress)
+    res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), res)
+    return res
+
+
+def _run_sequential(system, om, pvals, names, amp, cfg, method, floquet, direction,
+                    chunk_size, shard, progress):
+    """Each point seeded from its neighbour's orbit (``direction`` ``"up"`` or ``"down"``),
+    in compiled chunks; the points the branch could not be followed to are re-solved by
+    marching then shooting.  Returns the results shaped ``(P, F)`` in ``om``'s order."""
+    P = pvals.shape[0]
+    order = om if direction != "down" else om[::-1]
+    carry = jnp.full((P, system.num_states), jnp.nan)
+    size = min(chunk_size, len(order))
+    out = []
+    pv = jnp.asarray(pvals)
+    bar = PointProgress(P * len(order), f"sweep {direction}", bool(progress))
+    for start in range(0, len(order), size):
+        w = order[start:start + size]
+        pad = size - w.shape[0]
+        if pad:
+            w = np.concatenate([w, np.repeat(w[-1:], pad)])
+        carry, res = _sequential_chunk(system, jnp.asarray(w), amp, pv, carry, cfg, method,
+                                       names, floquet)
+        keep = size - pad
+        out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
+        bar.update(P * keep)
+    bar.bar.close()
+    res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)
+    if direction == "down":
+        res = jax.tree_util.tree_map(lambda a: a[:, ::-1], res)
+    if method.retry:
+        # a point the branch could not be followed to (past a fold, a grazing) is
+        # re-solved by marching from rest then shooting: the sweep jumps to the
+        # attractor there, as a slow physical sweep would
+        flat = jax.tree_util.tree_map(lambda a: np.array(a).reshape((-1,) + a.shape[2:]),
+                                      res)
+        W = np.broadcast_to(om[None, :], (P, len(om))).reshape(-1)
+        PV = np.repeat(pvals, len(om), axis=0)
+        bad = np.flatnonzero(flat.status != Status.SUCCESS)
+        flat = _in_batches(flat, bad, lambda p: retry_chunk(
+            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
+            floquet), "retry", progress, _retry_batch(system))
+        res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), flat)
+    return res
 
 
 def _check_params(system, params):

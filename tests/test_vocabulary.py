@@ -85,3 +85,15 @@ def test_one_table_of_integration_defaults():
     # a field given wins over the task's default, the others stay
     got = aj.Integrator(rtol=1e-6).resolved("design")
     assert got.rtol == 1e-6 and got.atol == DEFAULTS["design"].atol
+
+
+def test_a_design_honours_the_integrators_step_budget():
+    """A step budget too small for one period reaches the design's orbit solves: every
+    point fails (the budget is not silently replaced by the default)."""
+    system, _ = aj.presets.impact("kelvin_voigt")
+    om = np.linspace(40.0, 50.0, 3)
+    _, _, ok_status = aj.value_and_grad(system, ["k1"], om, amplitude=2.0)
+    assert np.all(ok_status == 0)
+    _, _, status = aj.value_and_grad(system, ["k1"], om, amplitude=2.0,
+                                     integrator=aj.Integrator(max_steps=3))
+    assert np.all(status != 0)

@@ -416,16 +416,17 @@ def exact_peak(system, band, *, amplitude, params=(), objective=None, method=Non
     obj = legacy_objective(obj, "exact_peak", legacy)
     method = design_method(method, "exact_peak", legacy, default_tol=1e-8)
     integ = integrator_from(integrator, "design", "exact_peak", legacy,
-                            fields=("solver", "rtol", "atol"))
+                            fields=("solver", "rtol", "atol", "max_steps"))
     no_more("exact_peak", legacy)
     return exact_peak_of(system, band, amplitude=amplitude, params=params, n_freq=obj.n_freq,
                          peaks=obj.peaks, tol=method.tol, rtol=integ.rtol, atol=integ.atol,
                          newton_steps=method.newton_steps, solver=integ.solver,
-                         xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes)
+                         xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes,
+                         max_steps=integ.max_steps)
 
 
 def exact_peak_of(system, band, *, amplitude, params, n_freq, peaks, tol, rtol, atol,
-                  newton_steps, solver, xtol, max_iter, modes) -> BandPeak:
+                  newton_steps, solver, xtol, max_iter, modes, max_steps=200_000) -> BandPeak:
     """``exact_peak`` with its options unpacked."""
 
     require_x64("exact_peak")
@@ -444,7 +445,8 @@ def exact_peak_of(system, band, *, amplitude, params, n_freq, peaks, tol, rtol, 
     if names:
         names, _ = check_design(system, names, omegas, "peak")
     p0 = jnp.array([float(get_param(system, k)) for k in names])
-    cfg = make_config(system, at_frequency(amplitude, float(omegas[0])), solver, rtol, atol)
+    cfg = make_config(system, at_frequency(amplitude, float(omegas[0])), solver, rtol, atol,
+                      max_steps)
     guesses = jnp.full((n_freq, system.num_states), jnp.nan, dtype=jnp.float64)
     out = peak_core(system, names, Reparam.plain(len(names)), p0, jnp.asarray(omegas),
                     amplitude, guesses, cfg, float(tol), int(newton_steps),

@@ -108,26 +108,27 @@ def robust_peak(system, band, *, amplitude, params=(), objective=None, method=No
     obj = legacy_objective(obj, "robust_peak", legacy, renamed={"samples": "probe_samples"})
     method = design_method(method, "robust_peak", legacy)
     integ = integrator_from(integrator, "design", "robust_peak", legacy,
-                            fields=("solver", "rtol", "atol"))
+                            fields=("solver", "rtol", "atol", "max_steps"))
     no_more("robust_peak", legacy)
     return robust_peak_of(system, band, amplitude=amplitude, params=params, n_freq=obj.n_freq,
                           peaks=obj.peaks, probes=obj.probes, samples=obj.probe_samples,
                           spread=obj.spread, seed=obj.seed, max_periods=obj.max_periods,
                           tol=method.tol, rtol=integ.rtol, atol=integ.atol,
                           newton_steps=method.newton_steps, solver=integ.solver,
-                          xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes)
+                          xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes,
+                          max_steps=integ.max_steps)
 
 
 def robust_peak_of(system, band, *, amplitude, params, n_freq, peaks, probes, samples, spread,
                    seed, max_periods, tol, rtol, atol, newton_steps, solver, xtol=1e-10,
-                   max_iter=40, modes=True) -> RobustPeak:
+                   max_iter=40, modes=True, max_steps=200_000) -> RobustPeak:
     """``robust_peak`` with its options unpacked."""
     if not isinstance(probes, int) or probes < 1:
         raise ValueError(f"robust_peak.probes must be a positive integer, got {probes!r}")
     plain = exact_peak_of(system, band, amplitude=amplitude, params=params, n_freq=n_freq,
                           peaks=peaks, tol=tol, rtol=rtol, atol=atol,
                           newton_steps=newton_steps, solver=solver, xtol=xtol,
-                          max_iter=max_iter, modes=modes)
+                          max_iter=max_iter, modes=modes, max_steps=max_steps)
     names = tuple(params)
     found = stable_responses(system, band, amplitude, probes=probes, samples=samples,
                              spread=spread, seed=seed, max_periods=max_periods, solver=solver,
@@ -144,7 +145,7 @@ def robust_peak_of(system, band, *, amplitude, params, n_freq, peaks, probes, sa
             grad = {k: float("nan") for k in names}
             if att.period_multiple == 1:
                 forcing = at_frequency(amplitude, w)
-                cfg = make_config(system, forcing, solver, rtol, atol)
+                cfg = make_config(system, forcing, solver, rtol, atol, max_steps)
                 p = jnp.array([float(get_param(system, k)) for k in names])
                 guess = system.to_internal(jnp.asarray(att.state))[None]
                 # in batches of the exact peak's slots: its compiled program, reused

@@ -117,19 +117,19 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
     obj = legacy_objective(obj, "value_and_grad", legacy, options=("softness",))
     method = design_method(method, "value_and_grad", legacy)
     integ = integrator_from(integrator, "design", "value_and_grad", legacy,
-                            fields=("solver", "rtol", "atol"))
+                            fields=("solver", "rtol", "atol", "max_steps"))
     no_more("value_and_grad", legacy)
     objective, softness = obj.kind, getattr(obj, "softness", 2e-3)
     tol, newton_steps = method.tol, method.newton_steps
     rtol, atol, solver = integ.rtol, integ.atol, integ.solver
     names, omegas = check_design(system, params, omegas, objective)
     if objective in ("exact_peak", "robust_peak"):
-
         if omegas.size < 3:
             raise ValueError(f"objective {objective!r} needs a grid of >= 3 frequencies")
         kw = dict(amplitude=amplitude, params=names, n_freq=omegas.size, peaks=obj.peaks,
                   tol=tol, rtol=rtol, atol=atol, newton_steps=newton_steps, solver=solver,
-                  xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes)
+                  xtol=obj.xtol, max_iter=obj.max_iter, modes=obj.modes,
+                  max_steps=integ.max_steps)
         band = (omegas[0], omegas[-1])
         pk = (exact_peak_of(system, band, **kw) if objective == "exact_peak" else
               robust_peak_of(system, band, probes=obj.probes, samples=obj.probe_samples,
@@ -141,7 +141,7 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
     ident = Reparam(lo=jnp.zeros(len(names)), hi=jnp.ones(len(names)),
                     bounded=jnp.zeros(len(names), bool), identity=jnp.zeros(len(names), bool))
     cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
-                      rtol, atol)
+                      rtol, atol, integ.max_steps)
     guesses = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
     val, g, (amps, _, status) = _value_and_jac(system, names, ident, jnp.log(p0),
                                                jnp.asarray(omegas), jnp.asarray(amplitude, float),
@@ -252,7 +252,7 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
     obj = legacy_objective(obj, "tune", legacy)
     method = design_method(method, "tune", legacy)
     integ = integrator_from(integrator, "design", "tune", legacy,
-                            fields=("solver", "rtol", "atol"))
+                            fields=("solver", "rtol", "atol", "max_steps"))
     n_starts = 3
     if "n_starts" in legacy:
         n_starts = legacy.pop("n_starts")
@@ -277,13 +277,13 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
                  rtol=integ.rtol, atol=integ.atol, newton_steps=method.newton_steps,
                  solver=integ.solver, progress=progress, confirm=bool(confirm),
                  confirm_points=points, confirm_samples=samples, starts=starts,
-                 n_starts=n_starts, callback=callback, **opts)
+                 n_starts=n_starts, callback=callback, max_steps=integ.max_steps, **opts)
 
 
 def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_freq, bounds,
           softness, peaks, tol, rtol, atol, newton_steps, solver, progress, confirm,
           confirm_points, confirm_samples, stability_margin, starts, n_starts, modes, probes,
-          probe_samples, rounds, callback):
+          probe_samples, rounds, callback, max_steps=200_000):
     """``tune`` with the objective's options unpacked (``objective`` its ``kind``)."""
     require_x64("tune")
     import optax
@@ -295,7 +295,8 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
             atol=atol, newton_steps=newton_steps, solver=solver, confirm=confirm,
             confirm_points=confirm_points, confirm_samples=confirm_samples,
             stability_margin=stability_margin, modes=modes, probes=probes,
-            probe_samples=probe_samples, rounds=rounds, callback=callback))
+            probe_samples=probe_samples, rounds=rounds, callback=callback,
+            max_steps=max_steps))
     if stability_margin is not None:
         check_scalar("tune", "stability_margin", stability_margin, lo=0.0, hi=1.0, hi_open=True)
         if objective not in ("exact_peak", "robust_peak"):
@@ -338,7 +339,7 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
         if k not in bounds and v <= 0:
             raise ValueError(f"the starting {k} = {v:g} must be > 0 (or give bounds)")
     cfg = make_config(system, Harmonic(amplitude=amplitude, omega=float(omegas[0])), solver,
-                      rtol, atol)
+                      rtol, atol, max_steps)
     u0 = reparam.inverse(jnp.asarray(p0))
     evaluate = _Evaluator(system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
                           objective, softness, peaks, stability_margin, solver, rtol, atol,

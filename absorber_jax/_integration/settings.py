@@ -33,7 +33,8 @@ class Integrator(eqx.Module):
       solver object.
     - ``rtol``, ``atol``: the PID step-size controller's relative and absolute tolerances.
     - ``max_steps``: the step budget per forcing period.
-    - ``dt0``: the first step [s] (``None``: diffrax chooses).
+    - ``dt0``: the first step [s] (``None``: diffrax chooses); used by ``simulate`` only,
+      the periodic solvers let diffrax choose.
 
     ```python
     import absorber_jax as aj

@@ -297,7 +297,7 @@ def write_md(rows, path):
               "time per frequency is measured on the listed points and multiplied by 256.", ""]
     for r in rows:
         if "issue_loop_ratio" in r:
-            lines += [f"{r['scene']}: against issue 12's own loop (RK45, rtol 1e-8, 20-period "
+            lines += [f"{r['scene']}: against a chunked RK45 loop (RK45, rtol 1e-8, 20-period "
                       f"chunks until the amplitude changes by < 1e-4), timed on the same "
                       f"{r['scipy_points']} frequencies in the same run: "
                       f"{r['issue_loop_s_per_freq']:.2f} s/freq "

@@ -13,7 +13,7 @@ import numpy as np
 
 from .._core.legacy import moved
 from .._periodic.shooting import Shooting
-from .._periodic.steady import solve_point
+from .._periodic.steady import method_from, solve_point
 from .._systems.forcing import Harmonic
 from .._systems.params import resolve
 
@@ -119,19 +119,15 @@ def legacy_objective(obj, where, legacy, options=("n_freq", "softness", "peaks",
 
 def design_method(method, where, legacy, default_tol=1e-7):
     """The ``Shooting`` of a design entry point: ``method`` (default
-    ``Shooting(tol=1e-7, newton_steps=40)``) with the deprecated keywords ``tol`` and
-    ``newton_steps`` popped from ``legacy`` (warning)."""
-    if method is None:
-        method = Shooting(tol=default_tol, newton_steps=40)
+    ``Shooting(tol=default_tol, newton_steps=40)``), with the deprecated keywords ``tol`` and
+    ``newton_steps`` popped from ``legacy`` (``method_from``: a warning names the new form)."""
+    options = {k: legacy.pop(k) for k in ("tol", "newton_steps") if k in legacy}
+    method = method_from(method, where, options,
+                         default=Shooting(tol=default_tol, newton_steps=40))
     if not isinstance(method, Shooting):
         raise ValueError(f"{where}.method must be an aj.Shooting(...): design solves orbits by "
                          f"shooting (gradients by implicit differentiation), got "
                          f"{type(method).__name__}")
-    given = {k: legacy.pop(k) for k in ("tol", "newton_steps") if k in legacy}
-    if given:
-        moved(where, given, "method=aj.Shooting({})")
-        method = Shooting(**{"tol": method.tol, "newton_steps": method.newton_steps,
-                             **given})
     return method
 
 

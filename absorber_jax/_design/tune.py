@@ -175,10 +175,6 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
     return seeds
 
 
-_OBJECTIVE_OPTIONS = ("n_freq", "softness", "peaks", "modes", "stability_margin", "probes",
-                      "probe_samples", "rounds")
-
-
 def tune(system, params, band, *, amplitude, objective=None, optimizer=None, steps=100,
          starts=None, method=None, integrator=None, progress=False, confirm=True, **legacy):
     """Tune absorber parameters to minimise the steady-state amplitude of the system's

@@ -151,21 +151,20 @@ def _in_batches(res, bad, solve, desc, progress, size):
     counts add up."""
     if bad.size == 0:
         return res
-    bar = PointProgress(bad.size, desc, bool(progress))
-    for start in range(0, bad.size, size):
-        idx = bad[start:start + size]
-        pad = np.concatenate([idx, np.repeat(idx[-1:], size - idx.size)])
-        k = idx.size
-        out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad))
-        out = eqx.tree_at(lambda r: r.iterations, out, out.iterations + res.iterations[idx])
+    with PointProgress(bad.size, desc, bool(progress)) as bar:
+        for start in range(0, bad.size, size):
+            idx = bad[start:start + size]
+            pad = np.concatenate([idx, np.repeat(idx[-1:], size - idx.size)])
+            k = idx.size
+            out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad))
+            out = eqx.tree_at(lambda r: r.iterations, out, out.iterations + res.iterations[idx])
 
-        def write(dst, src, idx=idx):
-            dst[idx] = src
-            return dst
+            def write(dst, src, idx=idx):
+                dst[idx] = src
+                return dst
 
-        res = jax.tree_util.tree_map(write, res, out)
-        bar.update(k)
-    bar.bar.close()
+            res = jax.tree_util.tree_map(write, res, out)
+            bar.update(k)
     return res
 
 
@@ -490,18 +489,17 @@ def _run_sequential(system, om, pvals, names, amp, cfg, method, floquet, directi
     size = min(chunk_size, len(order))
     out = []
     pv = jnp.asarray(pvals)
-    bar = PointProgress(P * len(order), f"sweep {direction}", bool(progress))
-    for start in range(0, len(order), size):
-        w = order[start:start + size]
-        pad = size - w.shape[0]
-        if pad:
-            w = np.concatenate([w, np.repeat(w[-1:], pad)])
-        carry, res = _sequential_chunk(system, jnp.asarray(w), amp, pv, carry, cfg, method,
-                                       names, floquet)
-        keep = size - pad
-        out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
-        bar.update(P * keep)
-    bar.bar.close()
+    with PointProgress(P * len(order), f"sweep {direction}", bool(progress)) as bar:
+        for start in range(0, len(order), size):
+            w = order[start:start + size]
+            pad = size - w.shape[0]
+            if pad:
+                w = np.concatenate([w, np.repeat(w[-1:], pad)])
+            carry, res = _sequential_chunk(system, jnp.asarray(w), amp, pv, carry, cfg, method,
+                                           names, floquet)
+            keep = size - pad
+            out.append(jax.tree_util.tree_map(lambda a, k=keep: np.asarray(a)[:, :k], res))
+            bar.update(P * keep)
     res = jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *out)
     if direction == "down":
         res = jax.tree_util.tree_map(lambda a: a[:, ::-1], res)

@@ -36,7 +36,14 @@ from ._design.tune import plot_tuning, tune, value_and_grad  # noqa: E402
 from ._integration.settings import Integrator  # noqa: E402
 from ._integration.simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
 from ._io.plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
-from ._laws.contact import AbstractContactLaw, Hertz, HuntCrossley, KelvinVoigt  # noqa: E402
+from ._laws.contact import (  # noqa: E402
+    AbstractCompliantLaw,
+    AbstractContactLaw,
+    Hertz,
+    HuntCrossley,
+    KelvinVoigt,
+)
+from ._laws.restitution import Restitution  # noqa: E402
 from ._laws.friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
 from ._laws.helpers import (  # noqa: E402
     effective_mass,
@@ -108,5 +115,5 @@ __all__ = [
     "presets", "simulate",
     "use_cpu_cores",
     "AbstractPeriodicForcing", "MultiHarmonic", "PeriodicForcing", "BaseExcitation",
-    "AbstractAbsorber",
+    "AbstractAbsorber", "AbstractCompliantLaw", "Restitution",
 ]

@@ -110,6 +110,7 @@ def flag_attributes() -> dict:
 # the per-point measurements of a steady-state result (SteadyState fields): meaningless at a
 # failed point, where they are set to NaN (``nan_where_failed``)
 MEASURED = ("amplitude", "rms", "harmonic", "absorber_amplitude", "absorber_rms", "impacts",
+            "contact_fraction",
             "dof_amplitude", "dof_rms", "dof_harmonic", "multipliers")
 
 

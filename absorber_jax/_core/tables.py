@@ -23,7 +23,8 @@ from .units import Signals, column, long_name, signals_of, unit_of, with_unit
 
 # the scalar fields of a steady-state result, in column order, then the per-degree-of-freedom
 # ones
-SCALARS = ("amplitude", "rms", "harmonic", "absorber_amplitude", "absorber_rms", "impacts")
+SCALARS = ("amplitude", "rms", "harmonic", "absorber_amplitude", "absorber_rms", "impacts",
+           "contact_fraction")
 PER_DOF = ("dof_amplitude", "dof_rms", "dof_harmonic")
 INTEGER = ("period_multiple", "stable", "status", "iterations")
 

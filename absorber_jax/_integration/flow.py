@@ -97,7 +97,7 @@ def integrate(dyn, x0, t0, t1, ts, cfg):
     (exact stick–slip) segment by segment (``_integration.stickslip``)."""
     system, forcing = dyn
     if system.hybrid:
-        ys, x, status, _, _ = hybrid_solve(
+        ys, x, status, _, _, _ = hybrid_solve(
             system, forcing, x0, t0, t1, ts, solver=cfg.solver,
             rtol=cfg.rtol * cfg.tol_factors[0], atol=cfg.atol * cfg.tol_factors[1],
             max_steps=cfg.max_steps, scale=state_scale(system, forcing),
@@ -129,6 +129,19 @@ def integrate_flow(dyn, x0, t1, ts, *, cfg):
     integration or checkpointing, and reverse mode gives the same numbers as forward mode.
     """
     return integrate(dyn, x0, 0.0, t1, ts, cfg)
+
+
+def event_counts(dyn, x0, t1, cfg):
+    """Impacts and the time [s] a contact is held closed, from scaled state ``x0`` at
+    ``t = 0`` to ``t1``, counted at the events of a hybrid system (rigid impacts happen at
+    instants that no sampling of the orbit resolves); no derivatives."""
+    system, forcing = jax.lax.stop_gradient(dyn)
+    _, _, _, _, _, (impacts, closed) = hybrid_solve(
+        system, forcing, jax.lax.stop_gradient(x0), 0.0, jax.lax.stop_gradient(t1), None,
+        solver=cfg.solver, rtol=cfg.rtol * cfg.tol_factors[0],
+        atol=cfg.atol * cfg.tol_factors[1], max_steps=cfg.max_steps,
+        scale=state_scale(system, forcing), max_segments=MAX_SEGMENTS)
+    return impacts, closed
 
 
 def flat_inputs(primals, tangents):

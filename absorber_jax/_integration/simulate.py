@@ -256,7 +256,7 @@ def _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, 
     """States at ``ts`` (with the work and dissipation columns when ``energy``), status and
     step count: one diffrax solve, or the event-driven segments of a hybrid system."""
     if system.hybrid:
-        ys, _, status, nsteps, _ = hybrid_solve(
+        ys, _, status, nsteps, _, _ = hybrid_solve(
             system, forcing, s0, t0, t1, ts, solver=solver, rtol=rtol, atol=atol,
             max_steps=max_steps, scale=jnp.ones_like(s0),
             max_segments=max_steps)  # every segment takes at least one step

@@ -1,12 +1,13 @@
-r"""Exact integration of hybrid (piecewise-smooth) systems: stick–slip friction.
+r"""Exact integration of hybrid (piecewise-smooth) systems: stick–slip friction, rigid impacts.
 
 A hybrid system (``system.hybrid``) has modes, each with a smooth vector field
 (``system.mode_rate``) and a switching function (``system.switch_function``) that leaves the
 mode where it crosses zero upwards; ``system.next_mode`` picks the next mode at the switch
 and projects the state onto it (a slip ending in stick sets the relative velocity to exactly
-zero).  The exact Coulomb and Stribeck laws are integrated this way: no smoothing length,
-so no stiffness and no scale of the motion enters (the ``eps -> 0`` limit of the smoothed
-laws).
+zero; an impact reverses the relative velocity by Newton's law).  The exact Coulomb and
+Stribeck laws and the rigid impact law (``Restitution``) are integrated this way: no
+smoothing length or contact stiffness, so no stiff time scale enters (the ``eps -> 0`` and
+infinite-stiffness limits of the smoothed and penalty laws).
 
 Each segment is one diffrax solve that stops at the switching event (diffrax's event root
 finder on the dense interpolant).  Derivatives through the event times are exact to first
@@ -72,7 +73,9 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     """Integrate hybrid ``system`` from scaled state ``x0`` at ``t0`` to ``t1``.
 
     ``ts``: save times in ``[t0, t1]`` (or None).  Returns ``(ys at ts or None, state at
-    t1, status, number of steps, number of segments)``; all states scaled by ``scale``."""
+    t1, status, number of steps, number of segments, (impacts, time in contact [s]))``;
+    all states scaled by ``scale``.  A start outside the modes' domain (a Newton iterate
+    beyond a rigid wall) is first mapped into it (``system.admissible_state``)."""
 
     def rate(t, x, mode):
         return system.mode_rate(t, x * scale, forcing, mode) / scale
@@ -81,6 +84,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         return system.switch_function(t, x * scale, forcing, mode)
 
     t0b, t1b = _sg(t0), _sg(t1)
+    x0 = system.admissible_state(t0b, x0 * scale, forcing) / scale
     mode0 = system.mode_of(t0b, _sg(x0) * scale, forcing)
     x0 = x0 - rate(t0b, x0, mode0) * (t0 - t0b)
     # The event is bracketed by diffrax's last step, and bisection on its dense interpolant
@@ -95,8 +99,12 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
 
     def segment(t, x, mode):
         term = diffrax.ODETerm(lambda t_, x_, a: rate(t_, x_, mode))
-        event = diffrax.Event(lambda t, y, args, **kw: switch(t, y, mode), root_finder=root,
-                              direction=True)
+        # an upcrossing of the switch from where the segment starts (or zero): a start a
+        # rounding above zero (a state put back on a rigid wall, moving off it) must not
+        # hide the next crossing when one step spans a whole short flight (a Zeno sequence)
+        start = jnp.maximum(_sg(switch(t, x, mode)), 0.0)
+        event = diffrax.Event(lambda t, y, args, **kw: switch(t, y, mode) - start,
+                              root_finder=root, direction=True)
         subs = [diffrax.SubSaveAt(t1=True)]
         if ts is not None:
             subs.append(diffrax.SubSaveAt(ts=jnp.clip(ts_b, t, t1b)))
@@ -106,7 +114,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
                                    throw=False, event=event, adjoint=diffrax.ForwardMode())
 
     def body(c):
-        t, x, mode, k, st, nsteps, ys = c
+        t, x, mode, k, st, nsteps, ys, impacts, closed = c
         sol = segment(t, x, mode)
         hit = sol.event_mask
         # a located event counts even when the bisection ran out of iterations (rounding
@@ -140,20 +148,24 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
             # samples of this segment: from its start (inclusive) to the event (exclusive)
             in_seg = (ts_b >= t) & ((ts_b < t_end) | (~hit & (ts_b <= t_end)))
             ys = jnp.where(in_seg[:, None], sol.ys[1], ys)
-        return (t_end, x_new, new_mode, k + 1, st, nsteps + sol.stats["num_steps"], ys)
+        impacts = impacts + (hit & system.event_is_impact(t_end, _sg(x_star) * scale, forcing,
+                                                          mode)).astype(int)
+        closed = closed + jnp.where(system.in_contact(mode), t_end - t, 0.0)
+        return (t_end, x_new, new_mode, k + 1, st, nsteps + sol.stats["num_steps"], ys,
+                impacts, closed)
 
     def cond(c):
-        t, _, _, k, st, _, _ = c
+        t, _, _, k, st, _, _, _, _ = c
         return (t < t1b) & (k < max_segments) & (st == Status.SUCCESS)
 
     ys0 = None if ts is None else jnp.zeros(ts.shape + x0.shape, x0.dtype)
     c0 = (t0b, x0, mode0, jnp.zeros((), int), jnp.asarray(Status.SUCCESS),
-          jnp.zeros((), int), ys0)
-    t, x, mode, k, st, nsteps, ys = jax.lax.while_loop(cond, body, c0)
+          jnp.zeros((), int), ys0, jnp.zeros((), int), jnp.zeros((), t0b.dtype))
+    t, x, mode, k, st, nsteps, ys, impacts, closed = jax.lax.while_loop(cond, body, c0)
     st = jnp.where((st == Status.SUCCESS) & (t < t1b), Status.MAX_STEPS, st)
     # a final time that depends on parameters (nT): move along the last mode's field
     x = x + rate(t1b, _sg(x), mode) * (t1 - t1b)
     if ts is not None:
         modes = jax.vmap(lambda tt, yy: system.mode_of(tt, yy * scale, forcing))(ts_b, _sg(ys))
         ys = ys + jax.vmap(rate)(ts_b, _sg(ys), modes) * jnp.reshape(ts - ts_b, (-1, 1))
-    return ys, x, st, nsteps, k
+    return ys, x, st, nsteps, k, (impacts, closed)

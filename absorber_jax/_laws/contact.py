@@ -22,14 +22,76 @@ from .smooth import smooth_clip_positive, smooth_gate, smooth_relu
 
 
 class AbstractContactLaw(eqx.Module):
-    """Base class of the impact laws: ``force(δ, δ̇) = elastic(δ) + viscous(δ, δ̇)``.
+    """Base class of every contact law: what happens where a clearance closes.
 
-    Subclasses define ``stiffness``, ``damping``, ``eps`` and ``adhesive`` fields and the
-    elastic and viscous parts.  With ``adhesive=False`` the total force is clipped at zero
-    (smoothly), so the law never pulls the masses together at separation; the paper's
-    laws pull (its "weakness" list), which is the default here to reproduce it.
+    Two families implement it: the compliant (penalty) laws
+    ([`AbstractCompliantLaw`][absorber_jax.AbstractCompliantLaw]: a force grows with the
+    penetration, integrated as a smooth vector field) and the rigid impact law
+    [`Restitution`][absorber_jax.Restitution] (no penetration: velocities jump at the walls
+    by Newton's law, integrated event by event).  ``exact`` tells them apart; the wall
+    members below give the force between events (zero for the rigid law).
     """
 
+    # True: the rigid law, integrated by events at the walls
+    # (absorber_jax._integration.stickslip)
+    exact: eqx.AbstractClassVar[bool]
+
+    @abc.abstractmethod
+    def wall_force(self, x, rate):
+        """Force [N] at one wall: ``x`` is the signed penetration coordinate
+        (``y - d`` on the right wall, ``-y - d`` on the left) and ``rate`` its derivative.
+
+        Returns ``(force, δ, δ̇)``."""
+
+    @abc.abstractmethod
+    def wall_energy(self, x):
+        """Elastic energy [J] stored at one wall at signed penetration ``x`` [m]."""
+
+    @abc.abstractmethod
+    def dissipated_power(self, x, rate):
+        """Power [W] dissipated at one wall at signed penetration ``x`` and rate ``rate``."""
+
+    @abc.abstractmethod
+    def stiffness_rate(self, meff, scale):
+        """A rough largest rate [1/s] the law adds to the linearised dynamics, for the
+        automatic explicit/implicit solver choice (``scale``: a typical penetration [m])."""
+
+    # a symmetric clearance: two walls at ±gap around the relative displacement u (the
+    # impact absorber of the paper and the ImpactDamper element share these)
+
+    def clearance_penetrations(self, u, gap):
+        """``(u - gap, -u - gap)``: the signed penetrations of the right and left walls [m]."""
+        return jnp.stack([u - gap, -u - gap])
+
+    def clearance_force(self, u, rate, gap):
+        """Net force [N] of the two walls on the relative coordinate ``u`` (rate ``rate``):
+        ``f(u - gap, u̇) - f(-u - gap, -u̇)``, the force the absorber exerts on its host."""
+        fr, _, _ = self.wall_force(u - gap, rate)
+        fl, _, _ = self.wall_force(-u - gap, -rate)
+        return fr - fl
+
+    def clearance_energy(self, u, gap):
+        """Elastic energy [J] stored in the two walls."""
+        return self.wall_energy(u - gap) + self.wall_energy(-u - gap)
+
+    def clearance_dissipation(self, u, rate, gap):
+        """Power [W] dissipated in the two walls (``dissipated_power`` of each)."""
+        return self.dissipated_power(u - gap, rate) + self.dissipated_power(-u - gap, -rate)
+
+
+class AbstractCompliantLaw(AbstractContactLaw):
+    """Base class of the compliant (penalty) laws:
+    ``force(δ, δ̇) = elastic(δ) + viscous(δ, δ̇)``, smoothed at the contact onset over
+    ``eps``.
+
+    Subclasses define ``stiffness``, ``damping``, ``eps`` and ``adhesive`` fields and the
+    elastic and viscous parts.  With ``adhesive=False`` (the laws' default) the total force
+    is clipped at zero (smoothly), so a wall never pulls the masses together at separation;
+    the paper's laws pull (its "weakness" list), which its presets reproduce with
+    ``adhesive=True``.
+    """
+
+    exact: ClassVar[bool] = False
     exponent: ClassVar[float]  # power of δ in the elastic term
 
     stiffness: eqx.AbstractVar[object]
@@ -63,13 +125,14 @@ class AbstractContactLaw(eqx.Module):
         return f
 
     def wall_force(self, x, rate):
-        """Smoothed force at one wall: ``x`` is the signed penetration coordinate
-        (``y - d`` on the right wall, ``-y - d`` on the left) and ``rate`` its derivative.
-
-        Returns ``(force, δ, δ̇)``."""
+        """Smoothed force at one wall: ``δ = eps·softplus(x/eps)``,
+        ``δ̇ = sigmoid(x/eps)·rate``.  Returns ``(force, δ, δ̇)``."""
         delta = smooth_relu(x, self.eps)
         delta_dot = smooth_gate(x, self.eps) * rate
         return self.force(delta, delta_dot), delta, delta_dot
+
+    def wall_energy(self, x):
+        return self.potential(jnp.maximum(x, 0.0))
 
     def dissipated_power(self, x, rate):
         """Power [W] dissipated at one wall: ``(force - elastic)·rate``.  With the conservative
@@ -79,39 +142,14 @@ class AbstractContactLaw(eqx.Module):
         f, delta, _ = self.wall_force(x, rate)
         return (f - self.elastic_force(delta)) * rate
 
-    # a symmetric clearance: two walls at ±gap around the relative displacement u (the
-    # impact absorber of the paper and the ImpactDamper element share these)
-
-    def clearance_penetrations(self, u, gap):
-        """``(u - gap, -u - gap)``: the signed penetrations of the right and left walls [m]."""
-        return jnp.stack([u - gap, -u - gap])
-
-    def clearance_force(self, u, rate, gap):
-        """Net force [N] of the two walls on the relative coordinate ``u`` (rate ``rate``):
-        ``f(u - gap, u̇) - f(-u - gap, -u̇)``, the force the absorber exerts on its host."""
-        fr, _, _ = self.wall_force(u - gap, rate)
-        fl, _, _ = self.wall_force(-u - gap, -rate)
-        return fr - fl
-
-    def clearance_energy(self, u, gap):
-        """Elastic energy [J] stored in the two walls."""
-        return (self.potential(jnp.maximum(u - gap, 0.0))
-                + self.potential(jnp.maximum(-u - gap, 0.0)))
-
-    def clearance_dissipation(self, u, rate, gap):
-        """Power [W] dissipated in the two walls (``dissipated_power`` of each)."""
-        return self.dissipated_power(u - gap, rate) + self.dissipated_power(-u - gap, -rate)
-
     def stiffness_rate(self, meff, scale):
-        """A rough largest rate [1/s] the law adds to the linearised dynamics, for the
-        automatic explicit/implicit solver choice (``scale``: a typical penetration [m])."""
         s = jnp.maximum(scale, self.eps)
         k_lin = self.exponent * self.stiffness * s ** (self.exponent - 1)
         c_lin = self.viscous_force(s, 1.0)
         return jnp.maximum(jnp.sqrt(k_lin / meff), c_lin / meff)
 
 
-class KelvinVoigt(AbstractContactLaw):
+class KelvinVoigt(AbstractCompliantLaw):
     r"""Linear spring–dashpot contact, the paper's *linear* model (section 2.1, Table 1):
 
     $$f(δ, δ̇) = k_1 δ + c_1 δ̇ .$$
@@ -210,7 +248,7 @@ def _zeta_of_restitution(e, adhesive):
     return 0.5 * (lo + hi)
 
 
-class _AbstractHertzian(AbstractContactLaw):
+class _AbstractHertzian(AbstractCompliantLaw):
     """Hertz elastic part ``kHz δ^{3/2}`` and its energy ``(2/5) kHz δ^{5/2}``."""
 
     exponent: ClassVar[float] = 1.5

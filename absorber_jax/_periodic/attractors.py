@@ -48,7 +48,7 @@ from .._core.checks import check_scalar, require_x64
 from .._core.legacy import no_more
 from .._core.status import Status
 from .._core.units import Signals, signals_of
-from .._integration.flow import flow_along, make_config, state_scale
+from .._integration.flow import event_counts, flow_along, make_config, state_scale
 from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
@@ -226,7 +226,13 @@ def _march_all(system, forcing, x0s, cfg, method, window, samples):
         x = system.to_internal(ss.state) / scale
         ys, st, lyap = window_statistics(system, forcing, x, window, samples, cfg)
         s = ys * scale
-        impacts = closures(jax.vmap(system.penetrations)(s)) / window
+        if system.hybrid and system.penetrations(s[0]).shape[0]:
+            # rigid impacts: counted at the events (instants no sampling resolves)
+            T = 2 * jnp.pi / forcing.omega
+            impacts = event_counts((system, forcing), x, window * T,
+                                   cfg.over_periods(window))[0] / window
+        else:
+            impacts = closures(jax.vmap(system.penetrations)(s)) / window
         s, ys = s[:-1], ys[:-1]
         obs = jax.vmap(system.observable)(s)
         sec = ys[::samples]

@@ -11,7 +11,11 @@ system's ``output_names``; ``absorber_amplitude`` and ``absorber_rms`` the same 
 absorber's motion relative to its host (``x2 - x1``; the largest over several absorbers);
 ``impacts``: contact closures per forcing period (``system.penetrations`` turning positive
 between consecutive samples, around the closed orbit, divided by ``n``; 0 without contacts):
-resolved for contacts lasting more than a few samples, ``T / 64`` at period 1.
+resolved for contacts lasting more than a few samples, ``T / 64`` at period 1; with rigid
+impacts (``Restitution``), the impacts counted at the events themselves.
+``contact_fraction``: the fraction of the response period with a contact closed (a sample
+with positive penetration; with rigid impacts the time held against a wall, from the
+events).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from .._core.status import Status
 from .._core.tables import steady_dataset
 from .._integration.flow import (
     accurate_tangents,
+    event_counts,
     flat_inputs,
     integrate_flow,
     lane_by_lane,
@@ -52,7 +57,9 @@ class SteadyState(eqx.Module):
     the system's ``output_names``; ``absorber_amplitude``, ``absorber_rms``: the same for the
     absorber's motion relative to its host (``x2 - x1``; the largest over several
     absorbers); ``impacts``: contact closures per forcing period (0 without contacts),
-    resolved for contacts lasting more than a few samples (``T/64`` at period 1).
+    resolved for contacts lasting more than a few samples (``T/64`` at period 1), counted
+    at the events with rigid impacts; ``contact_fraction``: the fraction of the response
+    period with a contact closed (held against a wall, with rigid impacts).
 
     ``state``: public state (``system.state_names``) on the orbit at ``t = 0 mod nT``;
     ``multipliers``: Floquet multipliers of the period-``nT`` map, the eigenvalues of its
@@ -72,6 +79,7 @@ class SteadyState(eqx.Module):
     absorber_amplitude: jax.Array
     absorber_rms: jax.Array
     impacts: jax.Array
+    contact_fraction: jax.Array
     dof_amplitude: jax.Array
     dof_rms: jax.Array
     dof_harmonic: jax.Array
@@ -150,6 +158,23 @@ def closures(pen, cyclic=False):
     return jnp.sum(closed[1:] & ~closed[:-1])
 
 
+def contact_statistics(system, forcing, x0, s, n, cfg, n_cap=1):
+    """Impacts per forcing period and the fraction of time a contact is closed over the
+    ``n`` forcing periods from scaled state ``x0`` sampled as internal states ``s``: from
+    the samples' penetrations, or (hybrid systems with contacts: rigid impacts) counted at
+    the events."""
+    pen = jax.vmap(system.penetrations)(s)                            # (N, walls)
+    if pen.shape[1] == 0:
+        zero = jnp.zeros((), s.dtype)
+        return zero, zero
+    if system.hybrid:
+        T = 2 * jnp.pi / forcing.omega
+        impacts, closed = event_counts((system, forcing), x0, n * T, cfg.over_periods(n_cap))
+        return (impacts / n).astype(s.dtype), closed / (n * T)
+    closed = jnp.any(pen > 0, axis=1)
+    return (closures(pen, cyclic=True) / n).astype(s.dtype), jnp.mean(closed.astype(s.dtype))
+
+
 def sample_orbit(system, forcing, x0, n, cfg, n_cap=1, *, with_end=False):
     """Internal states ``s`` at ``SAMPLES_PER_PERIOD · n_cap`` uniform times ``ts`` over one
     response period ``nT`` from scaled state ``x0``, and the integrator's status; with
@@ -183,9 +208,9 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     u = jax.vmap(system.strokes)(s)                                   # (N, absorbers)
     u_amp, u_rms, _ = jax.vmap(stats_of, in_axes=1)(u)
     most = (lambda a: jnp.max(a)) if u.shape[1] else (lambda a: jnp.zeros((), s.dtype))
-    impacts = closures(jax.vmap(system.penetrations)(s), cyclic=True) / n
+    impacts, contact = contact_statistics(system, forcing, x0, s, n, cfg, n_cap)
     stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
-                 absorber_rms=most(u_rms), impacts=impacts.astype(s.dtype),
+                 absorber_rms=most(u_rms), impacts=impacts, contact_fraction=contact,
                  dof_amplitude=d_amp, dof_rms=d_rms, dof_harmonic=d_harm)
     return stats, st, jnp.max(jnp.abs(u), axis=0), end, s
 

@@ -23,8 +23,14 @@ import jax.numpy as jnp
 from .._core.checks import as_float, nonnegative, positive
 from .._laws.contact import AbstractContactLaw
 from .._laws.friction import AbstractFrictionLaw
+from .._laws.restitution import ZENO_FRACTION
 from .base import AbstractSystem
 from .linear import _internal, finite_or_zero, harmonic_response, state_at_zero, two_mass_matrices
+
+
+# a rigid-impact absorber counts as stuck at a wall at the start of an integration when
+# within this fraction of the gap of it and slower than this fraction of the velocity scale
+STICK_TOLERANCE = 1e-9
 
 
 def regime(ts, sliding, period):
@@ -241,9 +247,11 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         nonnegative("ImpactAbsorber", "gap", self.gap)
         if not isinstance(self.contact, AbstractContactLaw):
             raise ValueError(
-                "ImpactAbsorber.contact must be a contact law (KelvinVoigt, Hertz "
-                f"or HuntCrossley), got {type(self.contact).__name__}"
+                "ImpactAbsorber.contact must be a contact law (KelvinVoigt, Hertz, "
+                f"HuntCrossley or Restitution), got {type(self.contact).__name__}"
             )
+        if self.contact.exact:
+            positive("ImpactAbsorber (rigid impacts: Restitution)", "gap", self.gap)
 
     @property
     def primary(self):
@@ -271,6 +279,8 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         return self.gap
 
     def aliases(self) -> dict:
+        if self.contact.exact:
+            return {"e": "contact.e"}
         return {"k1": "contact.stiffness", "kHz": "contact.stiffness",
                 "c1": "contact.damping", "eps": "contact.eps"}
 
@@ -281,12 +291,15 @@ class ImpactAbsorber(AbstractAbsorberSystem):
 
     def linear_guess(self, forcing):
         """The primary alone with the absorber floating at rest in the middle of the cavity
-        if that motion stays inside the clearance, else the tuned-mass damper with the
-        contact law's secant stiffness and damping at a penetration of the gap's size."""
+        if that motion stays inside the clearance (always, for rigid impacts), else the
+        tuned-mass damper with the contact law's secant stiffness and damping at a
+        penetration of the gap's size."""
         F0, w = forcing.amplitude, forcing.omega
         X1 = F0 / (self.k - w**2 * self.M + 1j * w * self.c)
         zero = jnp.zeros(())
         free = _internal(jnp.stack([jnp.imag(X1), zero]), jnp.stack([w * jnp.real(X1), zero]))
+        if self.contact.exact:
+            return finite_or_zero(free)
         d = jnp.maximum(self.gap, 1e-3)
         k_c = self.contact.elastic_force(d) / d
         c_c = self.contact.viscous_force(d, 1.0)
@@ -301,6 +314,108 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         return jnp.maximum(
             structural, self.contact.stiffness_rate(meff, jnp.maximum(self.gap, 1e-3))
         )
+
+    # -- rigid impacts (contact.exact, Restitution): modes 0 free flight, +1 / -1 stuck at
+    # the right / left wall (see absorber_jax._laws.restitution) --------------------------
+    @property
+    def hybrid(self) -> bool:
+        return self.contact.exact
+
+    def _free_acceleration(self, t, s, forcing):
+        """The primary's acceleration [m/s²] with the absorber flying free (the absorber's
+        acceleration relative to it is minus this)."""
+        return (forcing(t) - self.c * s[1] - self.k * s[0]) / self.M
+
+    def _together_acceleration(self, t, s, forcing):
+        """The common acceleration [m/s²] of primary and absorber stuck together."""
+        return (forcing(t) - self.c * s[1] - self.k * s[0]) / (self.M + self.m)
+
+    def _references(self, forcing):
+        """Velocity [m/s] and force [N] scales of the forced pair (switching functions
+        and tolerances are relative to them)."""
+        M, k, _ = self.primary
+        w = forcing.omega
+        L = jnp.maximum(forcing.amplitude / (k + M * w**2), self.gap)
+        f_ref = forcing.amplitude * self.m / (self.M + self.m)
+        return L * w, jnp.maximum(f_ref, 1e-300)
+
+    def mode_of(self, t, s, forcing):
+        u, w = s[2], s[3]
+        side = jnp.where(u >= 0, 1, -1)
+        v_ref, _ = self._references(forcing)
+        at_wall = jnp.abs(u) >= self.gap * (1.0 - STICK_TOLERANCE)
+        slow = jnp.abs(w) <= STICK_TOLERANCE * v_ref
+        # pressed: the free relative acceleration (-a1) points into that wall
+        pressed = -side * self._free_acceleration(t, s, forcing) > 0
+        return jnp.where(at_wall & slow & pressed, side, 0)
+
+    def mode_coupling(self, t, s, forcing, mode):
+        # stuck: the absorber moves with the primary, held by the force fp = -m a on it
+        fp = jnp.where(mode == 0, 0.0, -self.m * self._together_acceleration(t, s, forcing))
+        return fp, jnp.zeros((0,), dtype=jnp.result_type(s))
+
+    def mode_rate(self, t, s, forcing, mode):
+        free = mode == 0
+        a = jnp.where(free, self._free_acceleration(t, s, forcing),
+                      self._together_acceleration(t, s, forcing))
+        return jnp.stack([s[1], a, jnp.where(free, s[3], 0.0), jnp.where(free, -a, 0.0)])
+
+    def switch_function(self, t, s, forcing, mode):
+        # free flight: the nearer wall's penetration over the gap; stuck: the wall's pull
+        # (tensile holding force, -mode·(-m a) < 0 while it pushes) over the force scale
+        _, f_ref = self._references(forcing)
+        pen = jnp.max(self.contact.clearance_penetrations(s[2], self.gap)) / self.gap
+        pull = mode * self.m * self._together_acceleration(t, s, forcing) / f_ref
+        return jnp.where(mode == 0, pen, pull)
+
+    def next_mode(self, t, s, forcing, mode):
+        # free -> an impact at the wall on the side of u: Newton's law with momentum
+        # conserved, then sticking if what remains of a Zeno sequence is shorter than
+        # ZENO_FRACTION of the period; stuck -> free flight from rest against the wall
+        side = jnp.where(s[2] >= 0, 1.0, -1.0)
+        w = s[3]
+        meff = self.M * self.m / (self.M + self.m)
+        impulse = self.contact.impulse(w, meff)      # on the absorber: -impulse
+        v1 = s[1] + impulse / self.M
+        w_after = w - impulse / meff                 # = -e w
+        hit = jnp.stack([s[0], v1, side * self.gap, w_after])
+        a_rel = -self._free_acceleration(t, hit, forcing)
+        pressed = side * a_rel > 0
+        zeno = self.contact.zeno_time(w_after, a_rel) <= ZENO_FRACTION * forcing.period
+        stick = pressed & zeno
+        # a plastic end of the sequence: both share the momentum's velocity
+        v_common = s[1] + self.m * w / (self.M + self.m)
+        stuck = jnp.stack([s[0], v_common, side * self.gap, jnp.zeros_like(w)])
+        after_impact = jnp.where(stick, stuck, hit)
+        new = jnp.where(mode == 0, jnp.where(stick, side, 0.0), 0.0).astype(int)
+        return new, jnp.where(mode == 0, after_impact, s)
+
+    def admissible_state(self, t, s, forcing):
+        """A start beyond a wall (a Newton iterate of shooting) moving into it is the state
+        after the impact it went through, to first order: back along the free flight to the
+        wall, Newton's law, then forward again for the same time (continuous and smooth to
+        first order where it joins the states inside the clearance).  One moving out of
+        the wall is put back on it."""
+        u, w = s[2], s[3]
+        side = jnp.where(u >= 0, 1.0, -1.0)
+        pen = jnp.abs(u) - self.gap
+        entering = side * w > 0
+        dt = jnp.where((pen > 0) & entering, pen / jnp.where(entering, jnp.abs(w), 1.0), 0.0)
+        at_wall = s - self.mode_rate(t, s, forcing, 0) * dt
+        mode, after = self.next_mode(t, at_wall, forcing, jnp.zeros((), int))
+        through = after + self.mode_rate(t, after, forcing, mode) * dt
+        on_wall = s.at[2].set(side * self.gap)
+        return jnp.where(pen > 0, jnp.where(entering, through, on_wall), s)
+
+    def event_is_impact(self, t, s, forcing, mode):
+        # an event in free flight approaching the wall (not the rounding about a wall just
+        # left from rest, at zero relative velocity)
+        v_ref, _ = self._references(forcing)
+        side = jnp.where(s[2] >= 0, 1.0, -1.0)
+        return (mode == 0) & (side * s[3] > STICK_TOLERANCE * v_ref)
+
+    def in_contact(self, mode):
+        return mode != 0
 
 
 class FrictionAbsorber(AbstractAbsorberSystem):

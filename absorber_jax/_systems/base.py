@@ -96,7 +96,8 @@ class AbstractSystem(eqx.Module):
     # -- exact nonsmooth (hybrid) dynamics: see absorber_jax._integration.stickslip --------------
     @property
     def hybrid(self) -> bool:
-        """``True`` when integrated by switching modes at events (exact stick–slip)."""
+        """``True`` when integrated by switching modes at events (exact stick–slip, rigid
+        impacts)."""
         return False
 
     def mode_of(self, t, s, forcing):
@@ -114,6 +115,21 @@ class AbstractSystem(eqx.Module):
     def next_mode(self, t, s, forcing, mode):
         """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
         raise NotImplementedError
+
+    def admissible_state(self, t, s, forcing):
+        """Internal state ``s`` at the start of a hybrid integration, mapped into the set the
+        modes are defined on (a rigid contact: no penetration), continuously and smooth to
+        first order at its boundary; the identity unless overridden."""
+        return s
+
+    def event_is_impact(self, t, s, forcing, mode):
+        """Whether the switch leaving ``mode`` at ``(t, s)`` (the state before it) is an
+        impact (counted per period)."""
+        return jnp.zeros((), bool)
+
+    def in_contact(self, mode):
+        """Whether a contact is held closed in ``mode`` (time in contact)."""
+        return jnp.zeros((), bool)
 
     # -- what is measured ---------------------------------------------------------------
     @property

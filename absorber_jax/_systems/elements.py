@@ -588,7 +588,7 @@ class Contact(AbstractElement):
         return jnp.stack([-f, f]), None
 
     def energy(self, x, v, z):
-        return sum(self.contact.potential(jnp.maximum(p, 0.0)) for p, _, _ in self._walls(x, v))
+        return sum(self.contact.wall_energy(p) for p, _, _ in self._walls(x, v))
 
     def dissipation(self, x, v, z):
         return sum(self.contact.dissipated_power(p, pd) for p, pd, _ in self._walls(x, v))

@@ -364,7 +364,10 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         # free flight: the nearer wall's penetration over the gap; stuck: the wall's pull
         # (tensile holding force, -mode·(-m a) < 0 while it pushes) over the force scale
         _, f_ref = self._references(forcing)
-        pen = jnp.max(self.contact.clearance_penetrations(s[2], self.gap)) / self.gap
+        # the nearer wall's penetration: |u| - gap (not a max over the walls: jnp.max's
+        # derivative divides by the count of ties, which gives NaN tangents in the lanes
+        # of a vmapped event location that hold no event)
+        pen = jnp.abs(s[2]) / self.gap - 1.0
         pull = mode * self.m * self._together_acceleration(t, s, forcing) / f_ref
         return jnp.where(mode == 0, pen, pull)
 

@@ -1,0 +1,157 @@
+"""Rigid impacts (``Restitution``): against the closed-form event-exact reference of
+tests/reference_impacts.py (simulation with chatter and sticking, periodic orbits, impacts
+per period, Floquet multipliers by finite differences of its period map), design gradients
+against central differences, vmapped sweeps, and the compliant laws converging to it."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from reference_impacts import RigidImpactAbsorber
+
+import absorber_jax as aj
+
+# the hard-contact scene of scripts/benchmark_hard_contacts.py with a rigid ball
+SCENE = dict(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3)
+E, F0 = 0.6, 3.0
+
+
+def rigid(e=E, **kw):
+    return aj.ImpactAbsorber(**{**SCENE, **kw}, contact=aj.Restitution(e))
+
+
+def reference(omega, e=E):
+    p = SCENE
+    return RigidImpactAbsorber(p["M"], p["k"], p["c"], p["m"], p["gap"], e, F0, omega)
+
+
+def test_simulation_matches_the_event_exact_reference_through_chatter_and_sticking():
+    ts = np.linspace(0.0, 2.0, 2001)
+    ref, events = reference(30.0).run([0, 0, 0, 0], 0.0, 2.0, ts)
+    kinds = [k for _, k in events]
+    # the run chatters into sticking and is released again, several times
+    assert kinds.count("stick") >= 10 and kinds.count("release") >= 10
+    assert kinds.count("impact") > 300
+    errs = []
+    for rtol in (1e-9, 1e-12):
+        tr = aj.simulate(rigid(), aj.Harmonic(amplitude=F0, omega=30.0), 2.0, ts=ts,
+                         integrator=aj.Integrator(rtol=rtol, atol=rtol * 1e-2))
+        assert int(tr.status) == 0
+        u = np.asarray(tr.x2) - np.asarray(tr.x1)
+        assert np.max(np.abs(u)) <= SCENE["gap"] * (1 + 1e-12)   # never through a wall
+        scale = np.max(np.abs(ref[:, 0]))
+        errs.append(max(np.max(np.abs(np.asarray(tr.x1) - ref[:, 0])),
+                        np.max(np.abs(np.asarray(tr.x2) - ref[:, 2]))) / scale)
+    assert errs[1] < 1e-9, errs
+    assert errs[1] < 1e-2 * errs[0], errs     # the error follows the integrator's tolerance
+
+
+@pytest.mark.parametrize("omega", [25.0, 37.5, 40.0])
+def test_orbits_impacts_and_floquet_multipliers_match_the_reference(omega):
+    system = rigid()
+    ss = aj.steady_state(system, aj.Harmonic(amplitude=F0, omega=omega))
+    assert int(ss.status) == 0
+    ref = reference(omega)
+    n = int(ss.period_multiple)
+    T = 2 * np.pi / omega
+    y0 = np.asarray(ss.state)
+    y1, events = ref.run(y0, 0.0, n * T)
+    scale = np.array([1.0, omega, 1.0, omega]) * SCENE["gap"]
+    assert np.max(np.abs(y1[-1] - y0) / scale) < 1e-7        # periodic for the reference
+    assert float(ss.impacts) == sum(k == "impact" for _, k in events) / n
+    assert float(ss.impacts) >= 2
+    # the monodromy matrix of the reference's period map by central differences
+    J = np.zeros((4, 4))
+    for i in range(4):
+        h = np.zeros(4)
+        h[i] = 1e-7 * scale[i]
+        J[:, i] = (ref.run(y0 + h, 0.0, n * T)[0][-1] - ref.run(y0 - h, 0.0, n * T)[0][-1]) / (
+            2 * h[i])
+    mu_ref = np.sort(np.abs(np.linalg.eigvals(J)))
+    mu = np.sort(np.abs(np.asarray(ss.multipliers)))
+    np.testing.assert_allclose(mu, mu_ref, rtol=1e-5, atol=1e-6)
+    assert bool(ss.stable) == bool(mu_ref[-1] < 1.0)
+
+
+def test_sticking_orbit_reports_its_time_held_against_the_wall():
+    ss = aj.steady_state(rigid(), aj.Harmonic(amplitude=F0, omega=30.0))
+    assert int(ss.status) == 0
+    _, events = reference(30.0).run(np.asarray(ss.state), 0.0, 2 * np.pi / 30.0)
+    held, t_stick = 0.0, None
+    for t, k in events:
+        if k == "stick":
+            t_stick = t
+        elif k == "release" and t_stick is not None:
+            held, t_stick = held + t - t_stick, None
+    if t_stick is not None:
+        held += 2 * np.pi / 30.0 - t_stick
+    assert held > 0.05 * 2 * np.pi / 30.0
+    np.testing.assert_allclose(float(ss.contact_fraction), held / (2 * np.pi / 30.0),
+                               atol=1e-6)
+    # the two sticking walls' Zeno sequences end in a plastic contact: multipliers 0
+    assert np.sum(np.abs(np.asarray(ss.multipliers)) < 1e-8) >= 1
+
+
+def test_sweep_under_vmap_equals_single_solves():
+    omegas = np.array([25.0, 37.5, 40.0, 45.0])
+    fr = aj.frequency_response(rigid(), omegas, amplitude=F0)
+    assert np.all(np.asarray(fr.status) == 0), fr.failures()
+    for i in (0, 1):
+        one = aj.steady_state(rigid(), aj.Harmonic(amplitude=F0, omega=float(omegas[i])))
+        np.testing.assert_allclose(fr.amplitude[i], float(one.amplitude), rtol=1e-7)
+        assert fr.impacts[i] == float(one.impacts)
+
+
+def test_design_gradient_through_the_impacts_matches_central_differences():
+    # a stable orbit with four impacts a period and no sticking
+    omega, names = 37.5, ["gap", "e", "m", "k"]
+    system = rigid()
+    val, grads, status = aj.value_and_grad(system, names, [omega], amplitude=F0,
+                                           objective=aj.objectives.MeanSquare(n_freq=1))
+    assert np.all(status == 0)
+    tight = dict(method=aj.Shooting(tol=1e-12),
+                 integrator=aj.Integrator(rtol=1e-12, atol=1e-12))
+
+    def amp2(name, value):
+        s = aj.replace_params(system, {name: value})
+        ss = aj.steady_state(s, aj.Harmonic(amplitude=F0, omega=omega), **tight)
+        assert int(ss.status) == 0 and float(ss.impacts) == 4.0
+        return float(ss.amplitude) ** 2
+
+    np.testing.assert_allclose(val, amp2("gap", SCENE["gap"]), rtol=1e-6)
+    for name in names:
+        p = float(aj.get_param(system, name))
+        h = 1e-5 * p
+        fd = (amp2(name, p + h) - amp2(name, p - h)) / (2 * h)
+        assert abs(fd) > 1e-3 * val / p          # each parameter matters here
+        np.testing.assert_allclose(grads[name], fd, rtol=2e-4, err_msg=name)
+
+
+@pytest.mark.slow
+def test_penalty_laws_converge_to_the_rigid_mode_at_a_fitted_rate():
+    # Kelvin-Voigt walls with the restitution of the rigid law (exact for a single impact):
+    # the orbit's amplitude converges as the contact stiffens
+    omega = 37.5
+    f = aj.Harmonic(amplitude=F0, omega=omega)
+    exact = float(aj.steady_state(rigid(), f).amplitude)
+    ks = np.array([1e5, 1e6, 1e7])
+    errs = []
+    for kc in ks:
+        law = aj.KelvinVoigt.from_restitution(kc, E, SCENE["m"], SCENE["M"], eps=1e-9)
+        ss = aj.steady_state(aj.ImpactAbsorber(**SCENE, contact=law), f)
+        assert int(ss.status) == 0
+        errs.append(abs(float(ss.amplitude) - exact) / exact)
+    rate = np.polyfit(np.log(ks), np.log(errs), 1)[0]
+    assert np.all(np.diff(errs) < 0), errs
+    assert -1.2 < rate < -0.3, (rate, errs)
+
+
+def test_bad_restitution_input_is_refused_before_compilation():
+    with pytest.raises(ValueError, match="Restitution.e must be in"):
+        aj.Restitution(1.5)
+    with pytest.raises(ValueError, match="gap"):
+        aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=0.0, contact=aj.Restitution(0.5))
+    assert aj.parameter_names(rigid()) == ["M", "k", "c", "m", "gap", "e"]
+    assert float(aj.get_param(rigid(e=0.3), "e")) == 0.3
+    assert isinstance(rigid().contact, aj.AbstractContactLaw)
+    assert not isinstance(rigid().contact, aj.AbstractCompliantLaw)
+    assert float(jnp.asarray(rigid().contact.impulse(2.0, 0.5))) == pytest.approx(1.6)

@@ -254,6 +254,28 @@ class AbstractStickSlipElement(AbstractElement):
         """Its states with the sliding velocity set exactly to zero (end of a slip)."""
 
 
+class AbstractRigidImpactElement(AbstractElement):
+    """An element whose contact may be the rigid impact law (``Restitution``), integrated
+    event by event (see ``StructuralSystem``'s hybrid members): a mass riding in a
+    clearance ``±gap`` of its host, its states beginning with the relative displacement
+    ``u`` [m] and velocity ``w`` [m/s].  ``ImpactDamper`` implements it."""
+
+    @property
+    @abc.abstractmethod
+    def rigid(self) -> bool:
+        """True when the element's contact is the rigid impact law (event-driven)."""
+
+    @abc.abstractmethod
+    def evaluate_force(self, x, v, z, force):
+        """``evaluate`` with the contact force on the host [N] given (a wall holding the
+        mass against it; zero in free flight)."""
+
+
+def is_rigid(element) -> bool:
+    """Whether ``element`` is integrated with rigid (event-driven) impacts."""
+    return isinstance(element, AbstractRigidImpactElement) and bool(element.rigid)
+
+
 def is_exact(element) -> bool:
     """Whether ``element`` is integrated with exact (event-driven) stick–slip."""
     return isinstance(element, AbstractStickSlipElement) and bool(element.exact)
@@ -264,11 +286,15 @@ def _law_aliases(law, prefix):
             if f.init and f.name != "exact"}
 
 
-def _check_contact(owner, law):
+def _check_contact(owner, law, *, rigid_ok=True):
     if not isinstance(law, AbstractContactLaw):
         raise ValueError(f"{owner}.contact must be a contact law (KelvinVoigt, Hertz, "
-                         f"HuntCrossley or another AbstractContactLaw), got "
+                         f"HuntCrossley, Restitution or another AbstractContactLaw), got "
                          f"{type(law).__name__}")
+    if law.exact and not rigid_ok:
+        raise ValueError(f"{owner}.contact: rigid impacts (Restitution) are available in "
+                         f"ImpactAbsorber and ImpactDamper; give {owner} a compliant law "
+                         f"(KelvinVoigt.from_restitution gives one with the same restitution)")
 
 
 def _check_friction(owner, law, *, exact_ok):
@@ -364,7 +390,7 @@ class AbstractAbsorber(AbstractElement):
         return jnp.ones((self.num_law_states,))
 
 
-class ImpactDamper(AbstractAbsorber):
+class ImpactDamper(AbstractAbsorber, AbstractRigidImpactElement):
     r"""An impact absorber at a degree of freedom: a mass ``m`` [kg] moving freely in a
     cavity of the host with clearance ``gap`` [m] on each side, ``contact`` any contact law
     (the paper's section 2 with the host as primary).  With ``u = x_abs - x_host``,
@@ -387,9 +413,19 @@ class ImpactDamper(AbstractAbsorber):
         positive("ImpactDamper", "m", self.m)
         nonnegative("ImpactDamper", "gap", self.gap)
         _check_contact("ImpactDamper", self.contact)
+        if self.contact.exact:
+            positive("ImpactDamper (rigid impacts: Restitution)", "gap", self.gap)
 
     def coupling(self, u, w, z):
         return self.contact.clearance_force(u, w, self.gap), _zeros(0, u)
+
+    @property
+    def rigid(self) -> bool:
+        return self.contact.exact
+
+    def evaluate_force(self, x, v, z, force):
+        f = jnp.asarray(force, dtype=jnp.result_type(z))
+        return jnp.stack([f, jnp.zeros_like(f)]), (f, _zeros(0, z))
 
     def penetrations(self, x, v, z):
         return self.contact.clearance_penetrations(z[0], self.gap)
@@ -566,7 +602,7 @@ class Contact(AbstractElement):
 
     def __check_init__(self):
         nonnegative("Contact", "gap", self.gap)
-        _check_contact("Contact", self.contact)
+        _check_contact("Contact", self.contact, rigid_ok=False)
         if self.sides not in ("one", "two"):
             raise ValueError(f"Contact.sides must be 'one' or 'two', got {self.sides!r}")
         if self.direction not in (1, -1):

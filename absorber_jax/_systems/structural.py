@@ -29,7 +29,8 @@ import numpy as np
 
 from .._core.checks import is_traced
 from .base import AbstractSystem
-from .elements import AbstractElement, is_exact
+from .._laws.restitution import ZENO_FRACTION
+from .elements import AbstractElement, is_exact, is_rigid
 from .linear import finite_or_zero
 from .structure import LinearStructure
 
@@ -55,6 +56,11 @@ def _weights(structure, value, field):
                          f"{{name: weight}} dict or an array of shape ({n},), got shape "
                          f"{arr.shape}")
     return arr
+
+
+# a rigid impact element counts as held against a wall at the start of an integration when
+# within this fraction of its gap of it and slower than this fraction of its velocity scale
+STICK_TOLERANCE = 1e-9
 
 
 class BaseExcitation(eqx.Module):
@@ -225,6 +231,10 @@ class StructuralSystem(AbstractSystem):
         if sum(is_exact(e) for e in elements) > 1:
             raise ValueError("StructuralSystem.elements: at most one friction damper with an "
                              "exact (event-driven) law; give the others an eps")
+        if any(is_exact(e) for e in elements) and any(is_rigid(e) for e in elements):
+            raise ValueError("StructuralSystem.elements: an exact friction damper and rigid "
+                             "impacts (Restitution) in one system are not available; give the "
+                             "friction law an eps or the impacts a compliant law")
         names = self.element_names
         clash = set(names) & set(structure.dof_names)
         if len(set(names)) != len(names) or clash:
@@ -315,16 +325,20 @@ class StructuralSystem(AbstractSystem):
         return [(self._pair(xu, a, b), self._pair(vu, a, b), z) for (a, b), z in zip(pos, zs)]
 
     # -- dynamics ----------------------------------------------------------------------
-    def _forces(self, views, exact_force=None, skip=None):
+    def _forces(self, views, exact_force=None, skip=None, rigid_forces=None):
         """The elements' forces at their degrees of freedom (a vector over ``_used``) and
         each element's ``aux``; the exact element's friction force is ``exact_force`` when
-        given; element ``skip`` is left out."""
+        given, the rigid impact elements' contact forces ``rigid_forces`` (in the order of
+        ``_rigid``); element ``skip`` is left out."""
         used, pos = self._used()
         f = jnp.zeros((len(used),))
         auxes = []
+        rigid = self._rigid()
         for i, (e, (a, b), (xe, ve, z)) in enumerate(zip(self.elements, pos, views)):
             if exact_force is not None and i == self._exact_index():
                 fe, aux = e.evaluate_mode(xe, ve, z, exact_force)
+            elif rigid_forces is not None and i in rigid:
+                fe, aux = e.evaluate_force(xe, ve, z, rigid_forces[rigid.index(i)])
             else:
                 fe, aux = e.evaluate(xe, ve, z)
             auxes.append(aux)
@@ -361,11 +375,12 @@ class StructuralSystem(AbstractSystem):
                 rhs - jnp.diagonal(st.damping) * qd - jnp.diagonal(st.stiffness) * q)
         return self.mass_inverse @ (rhs - st.damping @ qd - st.stiffness @ q)
 
-    def _rate(self, s, f_ext, exact_force=None, stuck=None):
+    def _rate(self, s, f_ext, exact_force=None, stuck=None, rigid_forces=None):
         """d/dt of ``s`` under the external force ``F = f_ext`` [N] (the exact element's
-        friction force given, its sliding coordinates frozen when ``stuck``)."""
+        friction force given, its sliding coordinates frozen when ``stuck``; the rigid
+        impact elements' contact forces given)."""
         views = self._element_views(s)
-        f, auxes = self._forces(views, exact_force)
+        f, auxes = self._forces(views, exact_force, rigid_forces=rigid_forces)
         qdd = self._accelerations(s, f, f_ext)
         used, pos = self._used()
         # absolute accelerations: an element's own mass feels the support's too
@@ -387,7 +402,176 @@ class StructuralSystem(AbstractSystem):
 
     @property
     def hybrid(self) -> bool:
-        return self._exact_index() >= 0
+        return self._exact_index() >= 0 or bool(self._rigid())
+
+    def mode_of(self, t, s, forcing):
+        if self._rigid():
+            return self._rigid_mode_of(t, s, forcing)
+        return self._friction_mode_of(t, s, forcing)
+
+    def mode_rate(self, t, s, forcing, mode):
+        if self._rigid():
+            return self._rigid_rate(t, s, forcing, mode)[0]
+        return self._friction_mode_rate(t, s, forcing, mode)
+
+    def switch_function(self, t, s, forcing, mode):
+        if self._rigid():
+            g = self._rigid_switches(t, s, forcing, mode)
+            # the largest, picked by index (jnp.max's derivative divides by the count of
+            # ties: NaN tangents in the lanes of a vmapped event location without an event)
+            return g[jnp.argmax(g)]
+        return self._friction_switch(t, s, forcing, mode)
+
+    def next_mode(self, t, s, forcing, mode):
+        if self._rigid():
+            return self._rigid_next(t, s, forcing, mode)
+        return self._friction_next(t, s, forcing, mode)
+
+    # -- rigid impacts (ImpactDamper with Restitution): per element, 0 free flight, ±1
+    # held against its right / left wall; contact forces while held from the stuck
+    # elements' constraints (the Delassus matrix W: relative accelerations per unit contact
+    # force, W = G M⁻¹ Gᵀ + 1/m), impulses at an impact from the same W --------------------
+    def _rigid(self):
+        return [i for i, e in enumerate(self.elements) if is_rigid(e)]
+
+    def _rigid_rows(self):
+        """Per rigid element, the state indices of its ``u`` and ``w``."""
+        offs = self._offsets()[0]
+        return [offs[i] for i in self._rigid()], [offs[i] + 1 for i in self._rigid()]
+
+    def _rigid_gaps(self):
+        return jnp.stack([self.elements[i].gap for i in self._rigid()])
+
+    def _rigid_response(self, t, s, forcing):
+        """``(rate at zero contact force, ∂rate/∂forces)``: the rate is affine in the rigid
+        elements' contact forces."""
+        f_ext = forcing(t)
+        k = len(self._rigid())
+        rate = lambda lam: self._rate(s, f_ext, rigid_forces=lam)  # noqa: E731
+        zero = jnp.zeros((k,), s.dtype)
+        return rate(zero), jax.jacfwd(rate)(zero)
+
+    def _rigid_rate(self, t, s, forcing, mode):
+        """The rate in ``mode`` and the held elements' contact forces [N] (0 when free)."""
+        r0, R = self._rigid_response(t, s, forcing)
+        iu, iw = self._rigid_rows()
+        W, a0 = R[np.asarray(iw)], r0[np.asarray(iw)]
+        held = mode != 0
+        both = held[:, None] & held[None, :]
+        A = jnp.where(both, W, jnp.eye(len(iw), dtype=s.dtype))
+        lam = jnp.linalg.solve(A, jnp.where(held, -a0, 0.0))
+        r = r0 + R @ lam
+        r = r.at[np.asarray(iu)].set(jnp.where(held, 0.0, r[np.asarray(iu)]))
+        r = r.at[np.asarray(iw)].set(jnp.where(held, 0.0, r[np.asarray(iw)]))
+        return r, lam
+
+    def _rigid_scales(self, forcing):
+        """Per rigid element, its velocity scale [m/s] and force scale [N] (``m ω · Lω``)."""
+        _, iw = self._rigid_rows()
+        v = self.state_scale(forcing)[np.asarray(iw)]
+        m = jnp.stack([self.elements[i].m for i in self._rigid()])
+        return v, jnp.maximum(m * forcing.omega * v, 1e-300)
+
+    def _rigid_switches(self, t, s, forcing, mode):
+        iu, _ = self._rigid_rows()
+        u = s[np.asarray(iu)]
+        _, lam = self._rigid_rate(t, s, forcing, mode)
+        _, f_ref = self._rigid_scales(forcing)
+        # free: |u|/gap - 1; held against wall ±1: the wall's pull -mode·λ over m ω Lω
+        return jnp.where(mode == 0, jnp.abs(u) / self._rigid_gaps() - 1.0,
+                         -mode * lam / f_ref)
+
+    def _rigid_mode_of(self, t, s, forcing):
+        iu, iw = self._rigid_rows()
+        u, w = s[np.asarray(iu)], s[np.asarray(iw)]
+        side = jnp.where(u >= 0, 1, -1)
+        v_ref, _ = self._rigid_scales(forcing)
+        r0, _ = self._rigid_response(t, s, forcing)
+        at_wall = jnp.abs(u) >= self._rigid_gaps() * (1.0 - STICK_TOLERANCE)
+        slow = jnp.abs(w) <= STICK_TOLERANCE * v_ref
+        pressed = side * r0[np.asarray(iw)] > 0
+        return jnp.where(at_wall & slow & pressed, side, 0)
+
+    def _rigid_fired(self, t, s, forcing, mode):
+        """The rigid element whose switch fired (the largest) and its side."""
+        g = self._rigid_switches(t, s, forcing, mode)
+        k = jnp.argmax(g)
+        iu, _ = self._rigid_rows()
+        return k, jnp.where(s[np.asarray(iu)][k] >= 0, 1, -1)
+
+    def _rigid_next(self, t, s, forcing, mode):
+        k, side = self._rigid_fired(t, s, forcing, mode)
+        iu, iw = self._rigid_rows()
+        iu_a, iw_a = np.asarray(iu), np.asarray(iw)
+        n = self.num_coords
+        _, R = self._rigid_response(t, s, forcing)
+        W = R[iw_a]
+        w = s[iw_a]
+        held = mode != 0
+        hit = jnp.arange(len(iu)) == k
+
+        def impulse(e):
+            # the elements held stay held (their relative velocity unchanged); the one hit
+            # leaves at -e times its approach velocity
+            rows = held | hit
+            A = jnp.where(rows[:, None] & rows[None, :], W, jnp.eye(len(iu), dtype=s.dtype))
+            rhs = jnp.where(hit, -(1.0 + e) * w, 0.0)
+            P = jnp.linalg.solve(A, rhs)
+            new = s.at[n:2 * n].add(R[n:2 * n] @ P)
+            new = new.at[iw_a].add(W @ P)
+            return new.at[iu_a].set(jnp.where(hit, side * self._rigid_gaps(), s[iu_a]))
+
+        laws = [self.elements[i].contact for i in self._rigid()]
+        e_k = jnp.stack([law.e for law in laws])[k]
+        bounced = impulse(e_k)
+        plastic = impulse(0.0)
+        free_mode = jnp.where(hit, 0, mode)
+        r_free, _ = self._rigid_rate(t, bounced, forcing, free_mode)
+        a_rel = r_free[iw_a][k]
+        w_after = bounced[iw_a][k]
+        pressed = side * a_rel > 0
+        zeno_k = jnp.stack([law.zeno_time(w_after, a_rel) for law in laws])[k]
+        stick = pressed & (zeno_k <= ZENO_FRACTION * forcing.period)
+        impact = mode[k] == 0
+        after = jnp.where(stick, plastic, bounced)
+        new_mode = jnp.where(hit, jnp.where(impact & stick, side, 0), mode)
+        return new_mode, jnp.where(impact, after, s)
+
+    def admissible_state(self, t, s, forcing):
+        if not self._rigid():
+            return s
+        # the deepest element beyond its wall and moving into it: back along the free
+        # flight to the wall, its impact, forward again (first order, as ImpactAbsorber);
+        # one moving out of its wall is put back on it
+        iu, iw = self._rigid_rows()
+        iu_a, iw_a = np.asarray(iu), np.asarray(iw)
+        u, w = s[iu_a], s[iw_a]
+        side = jnp.where(u >= 0, 1.0, -1.0)
+        pen = jnp.abs(u) - self._rigid_gaps()
+        entering = side * w > 0
+        dts = jnp.where((pen > 0) & entering, pen / jnp.where(entering, jnp.abs(w), 1.0), 0.0)
+        k = jnp.argmax(dts)
+        dt = dts[k]
+        free = jnp.zeros((len(iu),), int)
+        at_wall = s - self._rigid_rate(t, s, forcing, free)[0] * dt
+        mode, after = self._rigid_next(t, at_wall, forcing, free)
+        through = after + self._rigid_rate(t, after, forcing, mode)[0] * dt
+        on_wall = s.at[iu_a].set(jnp.where((pen > 0) & ~entering, side * self._rigid_gaps(),
+                                           u))
+        return jnp.where(dt > 0, through, on_wall)
+
+    def event_is_impact(self, t, s, forcing, mode):
+        if not self._rigid():
+            return jnp.zeros((), bool)
+        k, side = self._rigid_fired(t, s, forcing, mode)
+        _, iw = self._rigid_rows()
+        v_ref, _ = self._rigid_scales(forcing)
+        return (mode[k] == 0) & (side * s[np.asarray(iw)][k] > STICK_TOLERANCE * v_ref[k])
+
+    def in_contact(self, mode):
+        if not self._rigid():
+            return jnp.zeros((), bool)
+        return jnp.any(mode != 0)
 
     def _exact(self, s):
         i = self._exact_index()
@@ -410,18 +594,18 @@ class StructuralSystem(AbstractSystem):
         stuck = jnp.abs(f) <= e.breakaway()
         return jnp.where(stuck, 0, jnp.where(f > 0, 1, -1))
 
-    def mode_of(self, t, s, forcing):
+    def _friction_mode_of(self, t, s, forcing):
         _, e, z, _ = self._exact(s)
         V = e.slip_velocity(z)
         return jnp.where(V > 0, 1, jnp.where(V < 0, -1, self._holding_mode(t, s, forcing)))
 
-    def mode_rate(self, t, s, forcing, mode):
+    def _friction_mode_rate(self, t, s, forcing, mode):
         _, e, z, _ = self._exact(s)
         slip = mode * e.kinetic(jnp.abs(e.slip_velocity(z)))
         fnl = jnp.where(mode == 0, self.holding_force(t, s, forcing), slip)
         return self._rate(s, forcing(t), exact_force=fnl, stuck=mode == 0)
 
-    def switch_function(self, t, s, forcing, mode):
+    def _friction_switch(self, t, s, forcing, mode):
         # dimensionless as in FrictionAbsorber: the holding force over the breakaway limit
         # plus the inertia force m ω² L of the host's motion scale; the sliding velocity
         # over the host's velocity scale L ω (rising through 0 when the slip stops)
@@ -433,7 +617,7 @@ class StructuralSystem(AbstractSystem):
         return jnp.where(mode == 0, (jnp.abs(f) - cap) / jnp.maximum(f_ref, 1e-300),
                          -mode * e.slip_velocity(z) / jnp.maximum(scale, 1e-30))
 
-    def next_mode(self, t, s, forcing, mode):
+    def _friction_next(self, t, s, forcing, mode):
         i, e, z, _ = self._exact(s)
         off = self._offsets()[0][i]
         z = jnp.where(mode == 0, z, e.stop_slip(z))

@@ -43,7 +43,7 @@ from ._laws.contact import (  # noqa: E402
     HuntCrossley,
     KelvinVoigt,
 )
-from ._laws.restitution import Restitution  # noqa: E402
+from ._laws.restitution import Restitution, restitution_of  # noqa: E402
 from ._laws.friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
 from ._laws.helpers import (  # noqa: E402
     effective_mass,
@@ -115,5 +115,5 @@ __all__ = [
     "presets", "simulate",
     "use_cpu_cores",
     "AbstractPeriodicForcing", "MultiHarmonic", "PeriodicForcing", "BaseExcitation",
-    "AbstractAbsorber", "AbstractCompliantLaw", "Restitution",
+    "AbstractAbsorber", "AbstractCompliantLaw", "Restitution", "restitution_of",
 ]

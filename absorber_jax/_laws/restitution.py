@@ -24,13 +24,15 @@ plastic end of the sequence, momentum conserved) and moves with it until the for
 holds it there would turn tensile.
 """
 
+import math
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
-from .._core.checks import as_float, check_scalar
-from .contact import AbstractContactLaw
+from .._core.checks import as_float, check_scalar, positive
+from .contact import AbstractCompliantLaw, AbstractContactLaw
 
 # a Zeno sequence of impacts shorter than this fraction of the forcing period ends in
 # sticking at once (see the module docstring)
@@ -92,3 +94,71 @@ class Restitution(AbstractContactLaw):
 
     def stiffness_rate(self, meff, scale):
         return jnp.zeros(())
+
+
+def restitution_of(law, m, M=math.inf, impact_velocity=1.0, *, steps=20_000):
+    """The coefficient of restitution a compliant ``law`` gives a single impact of masses
+    ``m`` and ``M`` [kg] (``M = inf``: against a fixed wall) at relative speed
+    ``impact_velocity`` [m/s] (it depends on the speed unless the law is linear).
+
+    The contact ``meff δ̈ = -f(δ, δ̇)`` from ``δ = 0``, ``δ̇ = v0`` is integrated by
+    fourth-order Runge–Kutta in ``steps`` steps of the undamped contact's time scale, to
+    separation: ``δ`` back to zero, or, for a non-adhesive law, the force back to zero
+    while the bodies part (the located instant interpolated linearly);
+    ``e = -δ̇_separation / v0``.  The converse, the law for a restitution:
+    [`KelvinVoigt.from_restitution`][absorber_jax.KelvinVoigt.from_restitution] (exact).
+
+    ```python
+    restitution_of(KelvinVoigt.from_restitution(1e5, 0.6, m=0.2, M=1.0), 0.2, 1.0)  # 0.6
+    ```
+    """
+    if not isinstance(law, AbstractCompliantLaw):
+        raise ValueError(f"restitution_of.law must be a compliant contact law (KelvinVoigt, "
+                         f"Hertz, HuntCrossley), got {type(law).__name__}")
+    positive("restitution_of", "m", m)
+    positive("restitution_of", "M", M)
+    positive("restitution_of", "impact_velocity", impact_velocity)
+    meff = m if math.isinf(M) else m * M / (m + M)
+    v0 = float(impact_velocity)
+    p = float(law.exponent)
+    k = float(law.stiffness)
+    # the undamped contact's largest penetration, and a time scale of the whole contact
+    depth = ((p + 1) * meff * v0**2 / (2 * k)) ** (1 / (p + 1))
+    dt = 4.0 * depth / v0 / steps
+
+    def accel(y):
+        return -law.force(jnp.maximum(y[0], 0.0), y[1]) / meff
+
+    def rhs(y):
+        return jnp.stack([y[1], accel(y)])
+
+    def parted(y):
+        gone = y[0] <= 0.0
+        if not law.adhesive:
+            gone = gone | ((law.force(jnp.maximum(y[0], 0.0), y[1]) <= 0.0) & (y[1] < 0.0))
+        return gone
+
+    def body(c):
+        y, _, i = c
+        k1 = rhs(y)
+        k2 = rhs(y + 0.5 * dt * k1)
+        k3 = rhs(y + 0.5 * dt * k2)
+        k4 = rhs(y + dt * k3)
+        return y + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4), y, i + 1
+
+    def cond(c):
+        y, _, i = c
+        return (~parted(y) | (i < 2)) & (i < 100 * steps)
+
+    y0 = jnp.array([0.0, v0])
+    y, prev, _ = jax.jit(lambda y0: jax.lax.while_loop(cond, body, (y0, y0, 0)))(y0)
+    # the separation between the last two steps, by linear interpolation of the criterion
+    if law.adhesive:
+        ga, gb = float(prev[0]), float(y[0])
+    else:
+        fa = float(law.force(max(float(prev[0]), 0.0), float(prev[1])))
+        fb = float(law.force(max(float(y[0]), 0.0), float(y[1])))
+        ga, gb = (float(prev[0]), float(y[0])) if float(y[0]) <= 0.0 else (fa, fb)
+    s = ga / (ga - gb) if ga != gb else 1.0
+    v_sep = float(prev[1]) + s * (float(y[1]) - float(prev[1]))
+    return -v_sep / v0

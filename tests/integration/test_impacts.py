@@ -155,3 +155,68 @@ def test_bad_restitution_input_is_refused_before_compilation():
     assert isinstance(rigid().contact, aj.AbstractContactLaw)
     assert not isinstance(rigid().contact, aj.AbstractCompliantLaw)
     assert float(jnp.asarray(rigid().contact.impulse(2.0, 0.5))) == pytest.approx(1.6)
+
+
+def test_a_one_storey_structure_with_a_rigid_ball_equals_the_impact_absorber():
+    st = aj.structure_from_matrices([[SCENE["M"]]], [[SCENE["k"]]], damping=[[SCENE["c"]]],
+                                    dof_names=["x1"])
+    ball = aj.ImpactDamper("x1", m=SCENE["m"], gap=SCENE["gap"], contact=aj.Restitution(E))
+    structural = aj.StructuralSystem(st, [ball], load="x1")
+    assert structural.hybrid
+    ts = np.linspace(0.0, 1.0, 1001)
+    f = aj.Harmonic(amplitude=F0, omega=30.0)
+    tight = aj.Integrator(rtol=1e-11, atol=1e-13)
+    a = aj.simulate(rigid(), f, 1.0, ts=ts, integrator=tight)
+    b = aj.simulate(structural, f, 1.0, ts=ts, integrator=tight)
+    np.testing.assert_allclose(np.asarray(b.ys)[:, 0], np.asarray(a.x1), atol=1e-12)
+    f = aj.Harmonic(amplitude=F0, omega=37.5)
+    s1, s2 = aj.steady_state(rigid(), f), aj.steady_state(structural, f)
+    np.testing.assert_allclose(float(s2.amplitude), float(s1.amplitude), rtol=1e-9)
+    assert float(s2.impacts) == float(s1.impacts) == 4.0
+    np.testing.assert_allclose(np.sort(np.abs(np.asarray(s2.multipliers))),
+                               np.sort(np.abs(np.asarray(s1.multipliers))), rtol=1e-6)
+
+
+def test_elastic_impacts_of_two_balls_conserve_a_buildings_energy():
+    # no damping, no load, e = 1: every impact (its impulse from the structure's mass
+    # matrix) must keep the mechanical energy; e < 1 must lose some at every impact
+    st = aj.shear_building([2.0, 1.0], [1e3, 1e3])
+    balls = [aj.ImpactDamper("floor2", m=0.3, gap=2e-3, contact=aj.Restitution(1.0)),
+             aj.ImpactDamper("floor1", m=0.2, gap=1e-3, contact=aj.Restitution(1.0))]
+    system = aj.StructuralSystem(st, balls, load="floor2")
+    y0 = np.zeros(system.num_states)
+    y0[:2] = [0.01, -0.02]                       # the floors released from a deflection
+    f = aj.Harmonic(amplitude=0.0, omega=20.0)
+    ts = np.linspace(0.0, 3.0, 3001)
+    tr = aj.simulate(system, f, 3.0, y0=y0, ts=ts,
+                     integrator=aj.Integrator(rtol=1e-11, atol=1e-14))
+    assert int(tr.status) == 0
+    s = np.asarray(tr.ys)
+    energy = np.array([float(system.mechanical_energy(jnp.asarray(si))) for si in s[::100]])
+    strokes = s[:, [4, 6]]
+    assert np.all(np.abs(strokes) <= np.array([2e-3, 1e-3]) * (1 + 1e-12))
+    # both balls hit their walls many times
+    for j, gap in enumerate((2e-3, 1e-3)):
+        assert np.sum(np.abs(strokes[:, j]) > 0.9 * gap) > 20
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-8)
+    lossy = aj.StructuralSystem(st, [b.__class__(b.dof, m=b.m, gap=b.gap,
+                                                 contact=aj.Restitution(0.7)) for b in balls],
+                                load="floor2")
+    tr = aj.simulate(lossy, f, 3.0, y0=y0, ts=ts, integrator=aj.Integrator(rtol=1e-11,
+                                                                           atol=1e-14))
+    e_end = float(lossy.mechanical_energy(jnp.asarray(tr.ys)[-1]))
+    assert e_end < 0.9 * energy[0]
+
+
+def test_restitution_of_a_compliant_law_matches_the_closed_form():
+    for adhesive, tol in ((True, 1e-8), (False, 1e-6)):
+        for e in (0.3, 0.6, 0.9):
+            law = aj.KelvinVoigt.from_restitution(2e4, e, 0.2, 1.0, adhesive=adhesive)
+            assert abs(aj.restitution_of(law, 0.2, 1.0) - e) < tol
+    # Hertz with viscous damping: more elastic at higher speed (the damping force grows
+    # more slowly than the elastic one)
+    hertz = aj.Hertz(stiffness=5.2e10, damping=2e4)
+    es = [aj.restitution_of(hertz, 50.0, 1000.0, v) for v in (0.01, 0.1, 1.0)]
+    assert 0 < es[0] < es[1] < es[2] < 1
+    with pytest.raises(ValueError, match="compliant"):
+        aj.restitution_of(aj.Restitution(0.5), 0.2)

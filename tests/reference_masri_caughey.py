@@ -4,7 +4,8 @@ undamped primary (Masri & Caughey).
 numpy/scipy only; nothing here imports absorber_jax.
 
 Reference: S. F. Masri, T. K. Caughey, On the stability of the impact damper, Journal of
-Applied Mechanics 33 (1966) 586-592.
+Applied Mechanics 33 (1966) 586 (the symmetric two-impact orbit and its stability; here
+with an undamped primary, where the whole orbit is in closed form).
 
 Scene (the conventions of tests/reference_impacts.py with ``c = 0``)::
 
@@ -33,14 +34,14 @@ with the same velocity ``V``, where by the symmetry the primary is at ``-x0`` wi
    ``t_i`` must end at ``(-x0, -v-)``.  After an impact at ``t_i`` the primary moves as
    ``x1(t_i + s) = X sin(tau + W s) + h(s)``, ``h(s) = a cos(w0 s) + (b/w0) sin(w0 s)``,
    ``a = x0 - S``, ``b = v+ - W C`` (note ``X sin(tau + W s) = S cos Ws + C sin Ws``), so with
-   ``c = cos th``, ``s = sin th`` and ``sin(tau + pi) = -sin tau``::
+   ``ct = cos th``, ``st = sin th`` and ``sin(tau + pi) = -sin tau``::
 
-       -x0 = -S + a c + (b/w0) s          ->   (1 + c) (x0 - S) + (s/w0) (v+ - W C) = 0
-       -v- = -W C - w0 a s + b c          ->   v- - W C - w0 s (x0 - S) + c (v+ - W C) = 0
+       -x0 = -S + a ct + (b/w0) st      ->   (1 + ct) (x0 - S) + (st/w0) (v+ - W C) = 0
+       -v- = -W C - w0 a st + b ct      ->   v- - W C - w0 st (x0 - S) + ct (v+ - W C) = 0
 
 Linear part.  1-3 give ``V``, ``v-``, ``v+`` from ``x0``:
 ``V = -4 (x0 + d)/T``, ``v- = (1 - e + 2 mu) V/(1 + e)``, ``v+ = (1 - e - 2 e mu) V/(1 + e)``;
-4-5 are then a 2x2 system in ``(C, S)`` with determinant ``-2 W (1 + c)`` (regular unless
+4-5 are then a 2x2 system in ``(C, S)`` with determinant ``-2 W (1 + ct)`` (regular unless
 ``w0/W`` is an odd integer, where the homogeneous flow over ``T/2`` is ``-1`` and the scheme
 degenerates: not handled).  Every unknown is therefore affine in ``x0``:
 ``z = z_p + x0 z_n`` (the particular solution at ``x0 = 0`` plus the null vector of the
@@ -56,7 +57,8 @@ where ``v1(s) = V``, located by brentq).
 
 Public state at ``t = 0 (mod T)`` (the library's forcing ``F0 sin(W t)``): the impact time
 ``t_i = tau/W`` mod ``T`` in ``[0, T)``; the last impact at or before ``t = 0`` is
-``t_i - j T/2`` with ``j = ceil(t_i/(T/2))``, at the wall ``(-1)^j d``; by the symmetry the
+``t_i - j T/2`` with ``j = ceil(t_i/(T/2))`` (an impact at ``t = 0`` itself counts: the
+state is the one after it), at the wall ``(-1)^j d``; by the symmetry the
 state there after the impact is ``(-1)^j (x0, v+, x0 + d, V)`` and its flight is ``(-1)^j``
 times the flight above, so ``y(0) = (-1)^j flight(j T/2 - t_i)`` with
 ``flight(s) = [x1(t_i + s), v1(t_i + s), x0 + d + V s, V]``.
@@ -85,7 +87,7 @@ class SymmetricOrbit:
     C: float            # X cos(tau)
     S: float            # X sin(tau)
     t_impact: float     # the impact time on u = +d in [0, T)
-    state: np.ndarray   # public state [x1, v1, x2, v2] at t = 0 (mod T)
+    state: np.ndarray   # public state [x1, v1, x2, v2] at t = 0 (mod T), after an impact there
     amplitude: float    # max |x1| over the period
     approach: float     # approach velocity w = -V - v_minus at that impact
     max_excursion: float  # max |u|/d strictly between impacts
@@ -183,19 +185,20 @@ class MasriCaughey:
                    zip(("x0", "vm", "vp", "V", "C", "S"), (x0, vm, vp, V, C, S))}
             tau = np.arctan2(orb["S"] / X, orb["C"] / X)
             t_i = (tau / W) % T
-            # the flight containing t = 0
-            j = int(np.ceil(t_i / (T / 2))) if t_i > 0 else 2
+            # the flight containing t = 0 (after the impact if one falls on t = 0)
+            j = int(np.ceil(t_i / (T / 2)))
             state = (-1) ** j * self._flight(orb, j * T / 2 - t_i)
             # amplitude: impacts and the turning points of x1 inside the flight
             cands = [abs(orb["x0"])]
-            for sr in self._roots_of(lambda s: self._flight(orb, s)[..., 1], 0.0, T / 2, n_grid):
+            for sr in self._roots_of(lambda s, orb=orb: self._flight(orb, s)[..., 1],
+                                     0.0, T / 2, n_grid):
                 cands.append(abs(float(self._flight(orb, sr)[0])))
             amp = max(cands)
             # the ball between the walls: a grid and the extremes of u (u' = V - v1 = 0)
             ss = np.linspace(0.0, T / 2, n_grid + 1)[1:-1]
             fl = self._flight(orb, ss)
             exc = np.max(np.abs(fl[:, 2] - fl[:, 0]))
-            for sr in self._roots_of(lambda s: orb["V"] - self._flight(orb, s)[..., 1],
+            for sr in self._roots_of(lambda s, orb=orb: orb["V"] - self._flight(orb, s)[..., 1],
                                      0.0, T / 2, n_grid):
                 y = self._flight(orb, sr)
                 exc = max(exc, abs(float(y[2] - y[0])))

@@ -175,3 +175,85 @@ class RigidImpactAbsorber:
                 events.append((t, "release"))
                 mode, last_w = 0, 0.0
         return out, events
+
+
+class RigidStopOscillator:
+    """``m x'' + c x' + k x = F0 sin(W t)`` with a rigid stop at ``x = gap``: at the stop the
+    velocity jumps to ``-e`` times itself; pressed against it (the free acceleration pointing
+    into it) with a remaining Zeno sequence shorter than ``zeno`` periods, the mass is held
+    at the stop until the free acceleration points away.  The same closed-form flights and
+    bracketing as ``RigidImpactAbsorber``."""
+
+    def __init__(self, m, c, k, gap, e, F0, W, zeno=1e-7):
+        self.m, self.c, self.k, self.d, self.e = m, c, k, gap, e
+        self.F0, self.W, self.zeno = F0, W, zeno
+        self.T = 2 * np.pi / W
+
+    def _accel(self, t, x, v):
+        return (self.F0 * np.sin(self.W * t) - self.c * v - self.k * x) / self.m
+
+    def run(self, y0, t0, t1, ts=None):
+        y = np.array(y0, float)
+        t, held = t0, False
+        ts = np.array([t1]) if ts is None else np.asarray(ts, float)
+        out = np.zeros((len(ts), 2))
+        events, last_v = [], None
+        while t < t1:
+            if not held:
+                osc = _Oscillator(self.m, self.c, self.k, self.F0, self.W, t, y[0], y[1])
+
+                def g(tq, osc=osc):
+                    return osc(tq)[0] - self.d
+
+                h = self.T / 4000
+                if last_v is not None:
+                    a = abs(self._accel(t, *y)) + 1e-300
+                    h = min(h, 0.25 * 2 * abs(last_v) / a)
+                h = max(h, 1e-13)
+                ta, hit = t, None
+                while ta < t1 and hit is None:
+                    tb = min(ta + h, t1)
+                    if g(ta) <= 0 < g(tb):
+                        tr = brentq(g, ta, tb, xtol=1e-16, rtol=1e-15, maxiter=500)
+                        if osc(tr)[1] > 1e-12 * self.d * self.W:
+                            hit = tr
+                    ta = tb
+                    h = min(self.T / 4000, h * 1.5)
+                t_end = t1 if hit is None else hit
+                sel = (ts >= t) & ((ts <= t_end) if hit is None else (ts < t_end))
+                for i in np.nonzero(sel)[0]:
+                    out[i] = osc(ts[i])
+                if hit is None:
+                    y, t = np.array(osc(t1)), t1
+                    break
+                t = hit
+                x, v = osc(t)
+                v_after = -self.e * v
+                a = self._accel(t, self.d, v_after)
+                events.append((t, "impact"))
+                if a > 0 and self.e < 1 and 2 * abs(v_after) / (a * (1 - self.e)) <= (
+                        self.zeno * self.T):
+                    y, held = np.array([self.d, 0.0]), True
+                    events.append((t, "stick"))
+                else:
+                    y, last_v = np.array([self.d, v_after]), v_after
+            else:
+                def push(tq):
+                    return -self._accel(tq, self.d, 0.0)
+
+                h = self.T / 4000
+                ta, t_rel = t, None
+                while ta < t1 and t_rel is None:
+                    tb = min(ta + h, t1)
+                    if push(ta) <= 0 < push(tb):
+                        t_rel = brentq(push, ta, tb, xtol=1e-16, rtol=1e-15, maxiter=500)
+                    ta = tb
+                t_end = t1 if t_rel is None else t_rel
+                sel = (ts >= t) & ((ts <= t_end) if t_rel is None else (ts < t_end))
+                out[np.nonzero(sel)[0]] = [self.d, 0.0]
+                y, t = np.array([self.d, 0.0]), t_end
+                if t_rel is None:
+                    break
+                events.append((t, "release"))
+                held, last_v = False, 0.0
+        return out, events

@@ -256,19 +256,45 @@ class AbstractStickSlipElement(AbstractElement):
 
 class AbstractRigidImpactElement(AbstractElement):
     """An element whose contact may be the rigid impact law (``Restitution``), integrated
-    event by event (see ``StructuralSystem``'s hybrid members): a mass riding in a
-    clearance ``±gap`` of its host, its states beginning with the relative displacement
-    ``u`` [m] and velocity ``w`` [m/s].  ``ImpactDamper`` implements it."""
+    event by event (see ``StructuralSystem``'s hybrid members): a normal coordinate ``r``
+    [m] (an absorber's displacement relative to its host, or the relative displacement of
+    two degrees of freedom) meets a wall at ``r = gap`` (and at ``r = -gap`` when
+    two-sided), where its rate ``ṙ`` jumps by Newton's law.  ``ImpactDamper`` and
+    ``Contact`` implement it."""
+
+    gap: eqx.AbstractVar[object]
+    contact: eqx.AbstractVar[object]
 
     @property
     @abc.abstractmethod
     def rigid(self) -> bool:
         """True when the element's contact is the rigid impact law (event-driven)."""
 
+    @property
+    @abc.abstractmethod
+    def two_sided(self) -> bool:
+        """True for walls at ``±gap``, False for one wall at ``+gap``."""
+
+    @abc.abstractmethod
+    def normal(self, x, v, z):
+        """``(r, ṙ)``: the normal coordinate [m] and its rate [m/s]."""
+
     @abc.abstractmethod
     def evaluate_force(self, x, v, z, force):
-        """``evaluate`` with the contact force on the host [N] given (a wall holding the
-        mass against it; zero in free flight)."""
+        """``evaluate`` with the contact force given: ``force`` [N] along ``r`` (positive
+        pushes the wall at ``+gap`` apart), zero in free flight."""
+
+    @abc.abstractmethod
+    def impact_mass(self, host_mass):
+        """A mass [kg] that scales its contact forces (tolerances only)."""
+
+    def held_rate(self, rate):
+        """Its own states' rate while held against a wall (identity: no own coordinate)."""
+        return rate
+
+    def on_wall(self, z, side):
+        """Its own states with its coordinate put on the wall ``side`` (identity: none)."""
+        return z
 
 
 def is_rigid(element) -> bool:
@@ -286,15 +312,11 @@ def _law_aliases(law, prefix):
             if f.init and f.name != "exact"}
 
 
-def _check_contact(owner, law, *, rigid_ok=True):
+def _check_contact(owner, law):
     if not isinstance(law, AbstractContactLaw):
         raise ValueError(f"{owner}.contact must be a contact law (KelvinVoigt, Hertz, "
                          f"HuntCrossley, Restitution or another AbstractContactLaw), got "
                          f"{type(law).__name__}")
-    if law.exact and not rigid_ok:
-        raise ValueError(f"{owner}.contact: rigid impacts (Restitution) are available in "
-                         f"ImpactAbsorber and ImpactDamper; give {owner} a compliant law "
-                         f"(KelvinVoigt.from_restitution gives one with the same restitution)")
 
 
 def _check_friction(owner, law, *, exact_ok):
@@ -423,9 +445,25 @@ class ImpactDamper(AbstractAbsorber, AbstractRigidImpactElement):
     def rigid(self) -> bool:
         return self.contact.exact
 
+    @property
+    def two_sided(self) -> bool:
+        return True
+
+    def normal(self, x, v, z):
+        return z[0], z[1]
+
     def evaluate_force(self, x, v, z, force):
         f = jnp.asarray(force, dtype=jnp.result_type(z))
         return jnp.stack([f, jnp.zeros_like(f)]), (f, _zeros(0, z))
+
+    def impact_mass(self, host_mass):
+        return self.m
+
+    def held_rate(self, rate):
+        return jnp.zeros_like(rate)
+
+    def on_wall(self, z, side):
+        return z.at[0].set(side * self.gap)
 
     def penetrations(self, x, v, z):
         return self.contact.clearance_penetrations(z[0], self.gap)
@@ -580,7 +618,7 @@ class TunedMassDamper(AbstractAbsorber):
         return jnp.maximum(jnp.sqrt(self.k / meff), self.c / meff)
 
 
-class Contact(AbstractElement):
+class Contact(AbstractRigidImpactElement):
     r"""A contact with a gap between the degree of freedom ``dof`` and ``other`` (another
     degree of freedom, or ground when ``None``), ``contact`` any contact law.
 
@@ -588,7 +626,9 @@ class Contact(AbstractElement):
     (penetration ``δ = direction · r - gap``), pushing ``dof`` back with ``-direction · f(δ,
     δ̇)`` and ``other`` the other way; ``sides="two"`` acts on both sides (``|r| > gap``), a
     clearance.  NLvib's unilateral spring of stiffness 100 when ``q1 > 1`` is
-    ``Contact("x1", gap=1.0, contact=KelvinVoigt(stiffness=100.0, damping=0.0))``.
+    ``Contact("x1", gap=1.0, contact=KelvinVoigt(stiffness=100.0, damping=0.0))``; a rigid
+    stop there with restitution 0.8 is ``Contact("x1", gap=1.0, contact=Restitution(0.8))``
+    (a two-sided rigid contact needs ``gap > 0``).
     """
 
     dof: object = eqx.field(static=True)
@@ -602,7 +642,9 @@ class Contact(AbstractElement):
 
     def __check_init__(self):
         nonnegative("Contact", "gap", self.gap)
-        _check_contact("Contact", self.contact, rigid_ok=False)
+        _check_contact("Contact", self.contact)
+        if self.contact.exact and self.sides == "two":
+            positive("Contact (two-sided, rigid impacts: Restitution)", "gap", self.gap)
         if self.sides not in ("one", "two"):
             raise ValueError(f"Contact.sides must be 'one' or 'two', got {self.sides!r}")
         if self.direction not in (1, -1):
@@ -617,6 +659,24 @@ class Contact(AbstractElement):
 
     def penetrations(self, x, v, z):
         return jnp.stack([p for p, _, _ in self._walls(x, v)])
+
+    @property
+    def rigid(self) -> bool:
+        return self.contact.exact
+
+    @property
+    def two_sided(self) -> bool:
+        return self.sides == "two"
+
+    def normal(self, x, v, z):
+        return self.direction * (x[0] - x[1]), self.direction * (v[0] - v[1])
+
+    def evaluate_force(self, x, v, z, force):
+        f = self.direction * jnp.asarray(force, dtype=jnp.result_type(x))
+        return jnp.stack([-f, f]), None
+
+    def impact_mass(self, host_mass):
+        return host_mass
 
     def evaluate(self, x, v, z):
         f = sum(sgn * self.contact.wall_force(p, pd)[0] for p, pd, sgn in self._walls(x, v))

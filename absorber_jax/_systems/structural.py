@@ -427,146 +427,181 @@ class StructuralSystem(AbstractSystem):
             return self._rigid_next(t, s, forcing, mode)
         return self._friction_next(t, s, forcing, mode)
 
-    # -- rigid impacts (ImpactDamper with Restitution): per element, 0 free flight, ±1
-    # held against its right / left wall; contact forces while held from the stuck
-    # elements' constraints (the Delassus matrix W: relative accelerations per unit contact
-    # force, W = G M⁻¹ Gᵀ + 1/m), impulses at an impact from the same W --------------------
+    # -- rigid impacts (Restitution in ImpactDamper and Contact elements): per element, 0
+    # free flight, ±1 held against its wall on that side of its normal coordinate r; the
+    # contact forces of the held elements from their constraints r̈ = 0 (the Delassus
+    # matrix W = ∂r̈/∂λ = G M⁻¹ Gᵀ + 1/m), the impulses of an impact from the same W ---------
     def _rigid(self):
         return [i for i, e in enumerate(self.elements) if is_rigid(e)]
 
-    def _rigid_rows(self):
-        """Per rigid element, the state indices of its ``u`` and ``w``."""
-        offs = self._offsets()[0]
-        return [offs[i] for i in self._rigid()], [offs[i] + 1 for i in self._rigid()]
+    def _rigid_elements(self):
+        return [self.elements[i] for i in self._rigid()]
 
     def _rigid_gaps(self):
-        return jnp.stack([self.elements[i].gap for i in self._rigid()])
+        return jnp.stack([e.gap for e in self._rigid_elements()])
+
+    def _two_sided(self):
+        return np.array([e.two_sided for e in self._rigid_elements()])
+
+    def _normals(self, s):
+        """Per rigid element, its normal coordinate ``r`` [m] and rate ``ṙ`` [m/s]."""
+        views = self._element_views(s)
+        rs = [self.elements[i].normal(*views[i]) for i in self._rigid()]
+        return jnp.stack([r for r, _ in rs]), jnp.stack([rd for _, rd in rs])
+
+    def _normal_rates(self, s, ds):
+        """``ṙ`` of the rigid elements, differentiated along ``ds`` (``r̈`` when ``ds`` is the
+        rate; linear in ``ds``)."""
+        return jax.jvp(lambda y: self._normals(y)[1], (s,), (ds,))[1]
 
     def _rigid_response(self, t, s, forcing):
-        """``(rate at zero contact force, ∂rate/∂forces)``: the rate is affine in the rigid
-        elements' contact forces."""
+        """``(rate at zero contact force, ∂rate/∂forces, r̈ at zero force, W = ∂r̈/∂forces)``:
+        the rate is affine in the rigid elements' contact forces."""
         f_ext = forcing(t)
         k = len(self._rigid())
         rate = lambda lam: self._rate(s, f_ext, rigid_forces=lam)  # noqa: E731
         zero = jnp.zeros((k,), s.dtype)
-        return rate(zero), jax.jacfwd(rate)(zero)
+        r0, R = rate(zero), jax.jacfwd(rate)(zero)
+        a0 = self._normal_rates(s, r0)
+        W = jax.vmap(lambda col: self._normal_rates(s, col), in_axes=1, out_axes=1)(R)
+        return r0, R, a0, W
+
+    def _held(self, rate, mode):
+        """``rate`` with the held elements' own relative coordinates frozen."""
+        offs = self._offsets()[0]
+        for k, i in enumerate(self._rigid()):
+            e, o = self.elements[i], offs[i]
+            if e.num_states:
+                part = rate[o:o + e.num_states]
+                rate = rate.at[o:o + e.num_states].set(jnp.where(mode[k] != 0, e.held_rate(part),
+                                                                 part))
+        return rate
 
     def _rigid_rate(self, t, s, forcing, mode):
         """The rate in ``mode`` and the held elements' contact forces [N] (0 when free)."""
-        r0, R = self._rigid_response(t, s, forcing)
-        iu, iw = self._rigid_rows()
-        W, a0 = R[np.asarray(iw)], r0[np.asarray(iw)]
+        r0, R, a0, W = self._rigid_response(t, s, forcing)
         held = mode != 0
         both = held[:, None] & held[None, :]
-        A = jnp.where(both, W, jnp.eye(len(iw), dtype=s.dtype))
+        A = jnp.where(both, W, jnp.eye(W.shape[0], dtype=s.dtype))
         lam = jnp.linalg.solve(A, jnp.where(held, -a0, 0.0))
-        r = r0 + R @ lam
-        r = r.at[np.asarray(iu)].set(jnp.where(held, 0.0, r[np.asarray(iu)]))
-        r = r.at[np.asarray(iw)].set(jnp.where(held, 0.0, r[np.asarray(iw)]))
-        return r, lam
+        return self._held(r0 + R @ lam, mode), lam
 
     def _rigid_scales(self, forcing):
-        """Per rigid element, its velocity scale [m/s] and force scale [N] (``m ω · Lω``)."""
-        _, iw = self._rigid_rows()
-        v = self.state_scale(forcing)[np.asarray(iw)]
-        m = jnp.stack([self.elements[i].m for i in self._rigid()])
-        return v, jnp.maximum(m * forcing.omega * v, 1e-300)
+        """Per rigid element: length [m], velocity [m/s] and force [N] scales (the motion's
+        length at its degree of freedom or its gap; ``× ω``; its mass ``× ω ×`` velocity)."""
+        L_dof = self._dof_lengths(forcing)
+        dofs = self._dofs()
+        hm = self._host_masses()
+        L, mass = [], []
+        for i in self._rigid():
+            e, (ia, _) = self.elements[i], dofs[i]
+            L.append(jnp.maximum(L_dof[ia], e.gap))
+            mass.append(e.impact_mass(hm[ia]))
+        L, mass = jnp.stack(L), jnp.stack(mass)
+        v = L * forcing.omega
+        return L, v, jnp.maximum(mass * forcing.omega * v, 1e-300)
+
+    def _sides(self, r):
+        return jnp.where(self._two_sided() & (r < 0), -1, 1)
 
     def _rigid_switches(self, t, s, forcing, mode):
-        iu, _ = self._rigid_rows()
-        u = s[np.asarray(iu)]
+        r, _ = self._normals(s)
         _, lam = self._rigid_rate(t, s, forcing, mode)
-        _, f_ref = self._rigid_scales(forcing)
-        # free: |u|/gap - 1; held against wall ±1: the wall's pull -mode·λ over m ω Lω
-        return jnp.where(mode == 0, jnp.abs(u) / self._rigid_gaps() - 1.0,
-                         -mode * lam / f_ref)
+        L, _, f_ref = self._rigid_scales(forcing)
+        # free: the nearer wall's penetration over the length scale; held against the wall
+        # on side ±1: its pull -mode·λ over the force scale
+        reach = jnp.where(self._two_sided(), jnp.abs(r), r)
+        return jnp.where(mode == 0, (reach - self._rigid_gaps()) / L, -mode * lam / f_ref)
 
     def _rigid_mode_of(self, t, s, forcing):
-        iu, iw = self._rigid_rows()
-        u, w = s[np.asarray(iu)], s[np.asarray(iw)]
-        side = jnp.where(u >= 0, 1, -1)
-        v_ref, _ = self._rigid_scales(forcing)
-        r0, _ = self._rigid_response(t, s, forcing)
-        at_wall = jnp.abs(u) >= self._rigid_gaps() * (1.0 - STICK_TOLERANCE)
-        slow = jnp.abs(w) <= STICK_TOLERANCE * v_ref
-        pressed = side * r0[np.asarray(iw)] > 0
+        r, rd = self._normals(s)
+        side = self._sides(r)
+        _, v_ref, _ = self._rigid_scales(forcing)
+        _, _, a0, _ = self._rigid_response(t, s, forcing)
+        at_wall = side * r >= self._rigid_gaps() - STICK_TOLERANCE * self._rigid_scales(
+            forcing)[0]
+        slow = jnp.abs(rd) <= STICK_TOLERANCE * v_ref
+        pressed = side * a0 > 0
         return jnp.where(at_wall & slow & pressed, side, 0)
 
     def _rigid_fired(self, t, s, forcing, mode):
-        """The rigid element whose switch fired (the largest) and its side."""
+        """The rigid element whose switch fired (the largest) and the side of its wall."""
         g = self._rigid_switches(t, s, forcing, mode)
         k = jnp.argmax(g)
-        iu, _ = self._rigid_rows()
-        return k, jnp.where(s[np.asarray(iu)][k] >= 0, 1, -1)
+        r, _ = self._normals(s)
+        return k, self._sides(r)[k]
+
+    def _on_wall(self, s, k, side):
+        """``s`` with element ``k``'s own relative coordinate put on its wall (elements that
+        keep one)."""
+        offs = self._offsets()[0]
+        for j, i in enumerate(self._rigid()):
+            e, o = self.elements[i], offs[i]
+            if e.num_states:
+                z = s[o:o + e.num_states]
+                s = s.at[o:o + e.num_states].set(jnp.where(k == j, e.on_wall(z, side), z))
+        return s
 
     def _rigid_next(self, t, s, forcing, mode):
         k, side = self._rigid_fired(t, s, forcing, mode)
-        iu, iw = self._rigid_rows()
-        iu_a, iw_a = np.asarray(iu), np.asarray(iw)
-        n = self.num_coords
-        _, R = self._rigid_response(t, s, forcing)
-        W = R[iw_a]
-        w = s[iw_a]
+        _, R, _, W = self._rigid_response(t, s, forcing)
+        _, rd = self._normals(s)
         held = mode != 0
-        hit = jnp.arange(len(iu)) == k
+        hit = jnp.arange(W.shape[0]) == k
 
         def impulse(e):
-            # the elements held stay held (their relative velocity unchanged); the one hit
-            # leaves at -e times its approach velocity
+            # the held elements stay held (their normal velocity unchanged), the one hit
+            # leaves at -e times its approach velocity; every velocity of the state (the
+            # structure's, each absorber's relative one) jumps by R P
             rows = held | hit
-            A = jnp.where(rows[:, None] & rows[None, :], W, jnp.eye(len(iu), dtype=s.dtype))
-            rhs = jnp.where(hit, -(1.0 + e) * w, 0.0)
-            P = jnp.linalg.solve(A, rhs)
-            new = s.at[n:2 * n].add(R[n:2 * n] @ P)
-            new = new.at[iw_a].add(W @ P)
-            return new.at[iu_a].set(jnp.where(hit, side * self._rigid_gaps(), s[iu_a]))
+            A = jnp.where(rows[:, None] & rows[None, :], W, jnp.eye(W.shape[0], dtype=s.dtype))
+            P = jnp.linalg.solve(A, jnp.where(hit, -(1.0 + e) * rd, 0.0))
+            return self._on_wall(s + R @ P, k, side)
 
-        laws = [self.elements[i].contact for i in self._rigid()]
+        laws = [e.contact for e in self._rigid_elements()]
         e_k = jnp.stack([law.e for law in laws])[k]
-        bounced = impulse(e_k)
-        plastic = impulse(0.0)
-        free_mode = jnp.where(hit, 0, mode)
-        r_free, _ = self._rigid_rate(t, bounced, forcing, free_mode)
-        a_rel = r_free[iw_a][k]
-        w_after = bounced[iw_a][k]
-        pressed = side * a_rel > 0
-        zeno_k = jnp.stack([law.zeno_time(w_after, a_rel) for law in laws])[k]
-        stick = pressed & (zeno_k <= ZENO_FRACTION * forcing.period)
+        bounced, plastic = impulse(e_k), impulse(0.0)
+        _, _, a_free, _ = self._rigid_response(t, bounced, forcing)
+        r_free, _ = self._rigid_rate(t, bounced, forcing, jnp.where(hit, 0, mode))
+        a_rel = self._normal_rates(bounced, r_free)[k]
+        w_after = self._normals(bounced)[1][k]
+        zeno = jnp.stack([law.zeno_time(w_after, a_rel) for law in laws])[k]
+        stick = (side * a_rel > 0) & (zeno <= ZENO_FRACTION * forcing.period)
         impact = mode[k] == 0
-        after = jnp.where(stick, plastic, bounced)
         new_mode = jnp.where(hit, jnp.where(impact & stick, side, 0), mode)
-        return new_mode, jnp.where(impact, after, s)
+        return new_mode, jnp.where(impact, jnp.where(stick, plastic, bounced), s)
 
     def admissible_state(self, t, s, forcing):
         if not self._rigid():
             return s
         # the deepest element beyond its wall and moving into it: back along the free
         # flight to the wall, its impact, forward again (first order, as ImpactAbsorber);
-        # one moving out of its wall is put back on it
-        iu, iw = self._rigid_rows()
-        iu_a, iw_a = np.asarray(iu), np.asarray(iw)
-        u, w = s[iu_a], s[iw_a]
-        side = jnp.where(u >= 0, 1.0, -1.0)
-        pen = jnp.abs(u) - self._rigid_gaps()
-        entering = side * w > 0
-        dts = jnp.where((pen > 0) & entering, pen / jnp.where(entering, jnp.abs(w), 1.0), 0.0)
+        # an element beyond its wall moving out of it is put back on it (its own
+        # coordinate; a contact between degrees of freedom is left to the flight)
+        r, rd = self._normals(s)
+        side = self._sides(r)
+        pen = side * r - self._rigid_gaps()
+        entering = side * rd > 0
+        dts = jnp.where((pen > 0) & entering, pen / jnp.where(entering, jnp.abs(rd), 1.0), 0.0)
         k = jnp.argmax(dts)
         dt = dts[k]
-        free = jnp.zeros((len(iu),), int)
+        free = jnp.zeros(r.shape, int)
         at_wall = s - self._rigid_rate(t, s, forcing, free)[0] * dt
         mode, after = self._rigid_next(t, at_wall, forcing, free)
         through = after + self._rigid_rate(t, after, forcing, mode)[0] * dt
-        on_wall = s.at[iu_a].set(jnp.where((pen > 0) & ~entering, side * self._rigid_gaps(),
-                                           u))
+        on_wall = s
+        for j in range(r.shape[0]):
+            on_wall = jnp.where((pen[j] > 0) & ~entering[j],
+                                self._on_wall(on_wall, j, side[j]), on_wall)
         return jnp.where(dt > 0, through, on_wall)
 
     def event_is_impact(self, t, s, forcing, mode):
         if not self._rigid():
             return jnp.zeros((), bool)
         k, side = self._rigid_fired(t, s, forcing, mode)
-        _, iw = self._rigid_rows()
-        v_ref, _ = self._rigid_scales(forcing)
-        return (mode[k] == 0) & (side * s[np.asarray(iw)][k] > STICK_TOLERANCE * v_ref[k])
+        _, rd = self._normals(s)
+        _, v_ref, _ = self._rigid_scales(forcing)
+        return (mode[k] == 0) & (side * rd[k] > STICK_TOLERANCE * v_ref[k])
 
     def in_contact(self, mode):
         if not self._rigid():
@@ -673,17 +708,27 @@ class StructuralSystem(AbstractSystem):
         floors = [e.length_floor() for e in self.elements]
         return jnp.max(jnp.stack(floors)) if floors else jnp.zeros(())
 
-    def state_scale(self, forcing):
-        """Coordinates: ``F0 |Φᵀ b|_∞ / (K_jj + ω² M_jj)``, at least the largest gap (in the
-        coordinate's units, ``/ max_i |Φ_ij|``); velocities ``× ω``; each element's states
-        from the resulting length at its degree of freedom."""
+    def _coordinate_lengths(self, forcing):
+        """The length scale of each coordinate: ``F0 |Φᵀ b|_∞ / (K_jj + ω² M_jj)``, at least
+        the largest gap (in the coordinate's units)."""
         st = self.structure
         w = forcing.omega
         g = forcing.amplitude * jnp.max(jnp.abs(self.coordinate_load()))
         Lc = g / (jnp.diag(st.stiffness) + w**2 * jnp.diag(st.mass))
         reach = jnp.maximum(jnp.max(jnp.abs(st.dof_map), axis=0), 1e-300)
-        Lc = jnp.maximum(jnp.maximum(Lc, self._length_floor() / reach), 1e-12)
-        Ldof = jnp.abs(st.dof_map) @ Lc
+        return jnp.maximum(jnp.maximum(Lc, self._length_floor() / reach), 1e-12)
+
+    def _dof_lengths(self, forcing):
+        """The length scale [m] at each degree of freedom."""
+        return jnp.abs(self.structure.dof_map) @ self._coordinate_lengths(forcing)
+
+    def state_scale(self, forcing):
+        """Coordinates: ``F0 |Φᵀ b|_∞ / (K_jj + ω² M_jj)``, at least the largest gap (in the
+        coordinate's units, ``/ max_i |Φ_ij|``); velocities ``× ω``; each element's states
+        from the resulting length at its degree of freedom."""
+        w = forcing.omega
+        Lc = self._coordinate_lengths(forcing)
+        Ldof = self._dof_lengths(forcing)
         parts = [Lc, Lc * w]
         for e, (ia, _) in zip(self.elements, self._dofs()):
             parts.append(e.state_scale(Ldof[ia], w))

@@ -21,7 +21,9 @@ from .constants import KINDS
 class Bifurcation(eqx.Module):
     """A bifurcation found on a [`Branch`][absorber_jax.Branch].
 
-    ``kind``: ``"fold"``, ``"period_doubling"`` or ``"neimark_sacker"``; ``value``: the
+    ``kind``: ``"fold"``, ``"period_doubling"``, ``"neimark_sacker"`` or ``"grazing"`` (an
+    orbit touching a rigid wall at zero relative velocity: impacts appear or vanish there;
+    located by the orbit's closest approach to the wall); ``value``: the
     located parameter value; ``amplitude``: the observable's amplitude there; ``state``:
     public orbit state; ``multipliers``: Floquet multipliers there; ``index``: it lies
     between branch points ``index`` and ``index + 1``; ``located``: the location converged

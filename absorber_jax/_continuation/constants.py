@@ -5,7 +5,17 @@ from __future__ import annotations
 FORCING_PARAMETERS = ("omega", "amplitude")
 
 
-KINDS = ("fold", "period_doubling", "neimark_sacker")
+KINDS = ("fold", "period_doubling", "neimark_sacker", "grazing")
+
+
+# grazing (rigid impacts): located when the orbit's closest approach to a wall is within
+# this fraction of the wall's length scale (or its bracket in the parameter within it);
+# the branch then resumes these fractions of the step beyond it (the first that converges)
+GRAZING_TOL = 1e-11
+GRAZING_STEPS = (0.05, 0.3, 1.0)
+# samples per period of the orbit whose closest approach to the walls is measured (then
+# refined by a parabola through the three samples around it)
+GRAZING_SAMPLES = 4096
 
 
 # a bifurcation is located when its bracket has shrunk to locate_tol and the test function

@@ -25,6 +25,9 @@ from .constants import (
     CLOSE_RETURN_SKIP,
     CLOSE_RETURNS,
     CORNER_REDUCTION,
+    GRAZING_SAMPLES,
+    GRAZING_STEPS,
+    GRAZING_TOL,
     JUMP_TOL,
     RESECTION,
     RESECTION_SAME,
@@ -250,6 +253,7 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     termination = "start_failed" if not first["ok"] else None
     h = method.step
     parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
+    rigid = _has_rigid_walls(drv.prob.system)
     bar.update(1)
     while termination is None:
         if len(points) >= method.max_points:
@@ -265,8 +269,18 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                  and h > method.step / CORNER_REDUCTION)
         if not b["ok"] or sharp:
             if h <= method.min_step * (1 + 1e-12):
-                termination = "step_collapse"
-                break
+                beyond = None
+                if rigid:
+                    bif, beyond = yield from _graze(drv, points, float(np.sign(a["t"][-1])))
+                    if bif is not None:
+                        bifs.append(bif)
+                if beyond is None:
+                    termination = "step_collapse"
+                    break
+                points.append(drv.rescale(beyond))
+                bar.update(1)
+                h = method.step
+                continue
             h = max(0.5 * h, method.min_step)
             continue
         p_b = b["z"][-1]
@@ -426,3 +440,111 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
         return float(_defect(prob1, jnp.asarray(z))) < 0.05 * d_first
 
     return first, rejoined
+
+
+def _has_rigid_walls(system):
+    """Whether ``system`` has rigid impacts (an event-driven system with contact walls)."""
+    return bool(system.hybrid) and system.penetrations(system.rest_state()).shape[0] > 0
+
+
+def _approach(drv, point):
+    """The orbit of branch point ``point``'s closest approach to a wall over its period
+    [m]: the largest penetration coordinate (negative while clear of every wall, zero on
+    an orbit that touches one), from ``GRAZING_SAMPLES`` samples of a simulation of the
+    orbit refined by a parabola, and the length scale of the motion [m]."""
+    from .._integration.settings import Integrator
+    from .._integration.simulate import simulate
+
+    system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
+    n = int(drv.prob.n)
+    T = n * float(forcing.period)
+    ts = np.linspace(0.0, T, GRAZING_SAMPLES * n + 1)
+    y0 = np.asarray(system.to_public(jnp.asarray(point["x0"])))      # the orbit at t = 0
+    tr = simulate(system, forcing, T, y0=y0, ts=ts,
+                  integrator=Integrator(rtol=1e-12, atol=1e-14), throw=False)
+    s = jax.vmap(system.to_internal)(jnp.asarray(tr.ys))
+    pen = np.asarray(jax.vmap(system.penetrations)(s))            # (N, walls)
+    j, k = np.unravel_index(np.argmax(pen), pen.shape)
+    y = pen[:, k]
+    if 0 < j < len(y) - 1:
+        a, b, c = y[j - 1], y[j], y[j + 1]
+        den = a - 2 * b + c
+        peak = b - 0.125 * (a - c) ** 2 / den if den < 0 else b
+    else:
+        peak = y[j]
+    scale = float(np.max(np.abs(np.asarray(drv.prob.s0))))
+    return float(peak), scale
+
+
+def _graze(drv, points, direction):
+    """At a step collapse of a branch with rigid impacts: if the last point's orbit nears a
+    wall (its closest approach falling towards zero), locate the grazing orbit by regula
+    falsi in the parameter on that approach (natural-parameter corrector solves; an
+    iterate beyond grazing impacts, approach 0), then solve the orbit a little beyond it.
+    A generator of corrector requests (as ``_follow``); returns ``(Bifurcation or None,
+    the point beyond or None)``."""
+    if len(points) < 2:
+        return None, None
+    a, prev = points[-1], points[-2]
+    ca, scale = _approach(drv, a)
+    cp, _ = _approach(drv, prev)
+    if not (ca < 0 and cp < ca) or float(a["ss"].impacts) != 0:
+        return None, None
+    e = np.zeros_like(a["z"])
+    e[-1] = direction
+    tol = GRAZING_TOL * scale
+    # bracket [lo: clear of the walls, hi: touching] in the scaled parameter
+    lo, glo, hi, best, evals = a["z"][-1], ca, None, a, 0
+    p_prev, g_prev = prev["z"][-1], cp
+    side = 0
+    while evals < 60:
+        if hi is None:
+            p = lo - glo * (lo - p_prev) / (glo - g_prev)           # secant beyond lo
+        else:
+            p = lo - glo * (hi - lo) / (0.0 - glo) * (0.5 if side == 1 else 1.0)
+            if not min(lo, hi) < p < max(lo, hi):
+                p = 0.5 * (lo + hi)
+        z = best["z"].copy()
+        z[-1] = p
+        c = yield (drv, z, e, False)
+        evals += 1
+        if not c["ok"]:
+            # no orbit converged there (the corrector's tolerance at the grazing orbit
+            # itself, where the period map is not differentiable): bracket from above
+            hi, side = p, side + 1
+            continue
+        gc, _ = _approach(drv, c)
+        if float(c["ss"].impacts) == 0 and abs(gc) <= tol:
+            lo, glo, best = p, gc, c
+            break
+        touching = float(c["ss"].impacts) > 0 or gc >= -tol
+        if not touching:
+            p_prev, g_prev, lo, glo, best = lo, glo, p, gc, c
+            side = 0
+            if abs(gc) <= tol:
+                break
+        else:
+            hi = p
+            side += 1
+        if hi is not None and abs(hi - lo) <= GRAZING_TOL * max(1.0, abs(lo)):
+            break
+    located = abs(glo) <= 1e3 * tol or (hi is not None
+                                         and abs(hi - lo) <= 1e3 * GRAZING_TOL * abs(lo))
+    ss = best["ss"]
+    bif = Bifurcation(kind="grazing", value=float(best["z"][-1] * drv.prob.pscale),
+                      amplitude=float(ss.amplitude), state=np.asarray(ss.state),
+                      multipliers=np.asarray(ss.multipliers), index=len(points) - 1,
+                      period_multiple=drv.prob.n, located=bool(located), evaluations=evals)
+    # beyond: the impacting orbit near grazing is reached from the grazing one with the
+    # whole Newton budget (the period map's derivative grows like the inverse square root
+    # of the distance to grazing), a larger step where a small one fails
+    for frac in GRAZING_STEPS:
+        z = best["z"].copy()
+        z[-1] = best["z"][-1] + direction * frac * drv.method.step
+        c = yield (drv, z, e, True)
+        if c["ok"]:
+            break
+    if not c["ok"]:
+        return bif, None
+    c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
+    return bif, c

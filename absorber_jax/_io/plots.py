@@ -147,7 +147,8 @@ def plot_frequency_response(frfs, path=None, *, title="", ax=None, label_prefix=
 
 BIFURCATION_STYLE = {"fold": ("o", "black", "fold"),
                      "period_doubling": ("s", "tab:red", "period doubling"),
-                     "neimark_sacker": ("D", "tab:green", "Neimark–Sacker")}
+                     "neimark_sacker": ("D", "tab:green", "Neimark–Sacker"),
+                     "grazing": ("^", "tab:purple", "grazing")}
 
 
 def _parameter_label(br):

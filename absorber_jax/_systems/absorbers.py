@@ -393,6 +393,10 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         new = jnp.where(mode == 0, jnp.where(stick, side, 0.0), 0.0).astype(int)
         return new, jnp.where(mode == 0, after_impact, s)
 
+    @property
+    def grazing_events(self) -> bool:
+        return self.hybrid and bool(self.contact.exact)
+
     def admissible_state(self, t, s, forcing):
         """A start beyond a wall (a Newton iterate of shooting) moving into it is the state
         after the impact it went through, to first order: back along the free flight to the

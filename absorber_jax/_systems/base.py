@@ -116,6 +116,14 @@ class AbstractSystem(eqx.Module):
         """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
         raise NotImplementedError
 
+    @property
+    def grazing_events(self) -> bool:
+        """Whether a hybrid integration also stops at each maximum of the switching function
+        and checks it there: a switch crossed and crossed back within one integrator step
+        (a rigid wall grazed) shows no sign change at the step's ends.  ``True`` for rigid
+        impacts."""
+        return False
+
     def admissible_state(self, t, s, forcing):
         """Internal state ``s`` at the start of a hybrid integration, mapped into the set the
         modes are defined on (a rigid contact: no penetration), continuously and smooth to

@@ -571,6 +571,10 @@ class StructuralSystem(AbstractSystem):
         new_mode = jnp.where(hit, jnp.where(impact & stick, side, 0), mode)
         return new_mode, jnp.where(impact, jnp.where(stick, plastic, bounced), s)
 
+    @property
+    def grazing_events(self) -> bool:
+        return self.hybrid and bool(self._rigid())
+
     def admissible_state(self, t, s, forcing):
         if not self._rigid():
             return s

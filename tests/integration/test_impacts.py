@@ -220,3 +220,48 @@ def test_restitution_of_a_compliant_law_matches_the_closed_form():
     assert 0 < es[0] < es[1] < es[2] < 1
     with pytest.raises(ValueError, match="compliant"):
         aj.restitution_of(aj.Restitution(0.5), 0.2)
+
+
+def _stop_oscillator():
+    # x'' + 0.1 x' + x = A sin t with a rigid stop at x = 1, e = 0.8
+    st = aj.structure_from_matrices([[1.0]], [[1.0]], damping=[[0.1]], dof_names=["x"])
+    return aj.StructuralSystem(st, [aj.Contact("x", gap=1.0, contact=aj.Restitution(0.8))],
+                               load="x")
+
+
+def test_rigid_stop_against_ground_matches_the_event_exact_reference():
+    from reference_impacts import RigidStopOscillator
+
+    ts = np.linspace(0.0, 60.0, 601)
+    for A, W in ((0.5, 1.0), (2.0, 1.0)):
+        ref, events = RigidStopOscillator(1.0, 0.1, 1.0, 1.0, 0.8, A, W).run([0, 0], 0.0, 60.0,
+                                                                           ts)
+        assert sum(k == "impact" for _, k in events) >= 8
+        tr = aj.simulate(_stop_oscillator(), aj.Harmonic(amplitude=A, omega=W), 60.0, ts=ts,
+                         integrator=aj.Integrator(rtol=1e-11, atol=1e-13))
+        assert int(tr.status) == 0
+        x = np.asarray(tr.ys)[:, 0]
+        assert np.max(x) <= 1.0 + 1e-12
+        np.testing.assert_allclose(x, ref[:, 0], atol=1e-9)
+
+
+def test_continuation_passes_grazing_and_locates_it():
+    # grazing where the free response 10 A reaches the stop: A = 0.1 exactly
+    from reference_impacts import RigidStopOscillator
+
+    br = aj.continuation(_stop_oscillator(), aj.Harmonic(amplitude=0.05, omega=1.0),
+                         "amplitude", bounds=(0.05, 0.2))
+    assert br.termination == "bounds"
+    graze = [b for b in br.bifurcations if b.kind == "grazing"]
+    assert len(graze) == 1 and graze[0].located
+    assert abs(graze[0].value - 0.1) < 1e-8
+    impacts = np.asarray(br.steady.impacts)
+    values = np.asarray(br.values)
+    assert np.all(impacts[values < 0.1 - 1e-6] == 0) and np.all(impacts[values > 0.1 + 1e-6] == 1)
+    # the impacting branch is periodic for the reference, with one impact a period
+    for i in np.flatnonzero(values > 0.12)[::10]:
+        y0 = np.asarray(br.steady.state)[i]
+        ref = RigidStopOscillator(1.0, 0.1, 1.0, 1.0, 0.8, float(values[i]), 1.0)
+        y1, events = ref.run(y0, 0.0, 2 * np.pi)
+        assert np.max(np.abs(y1[-1] - y0)) < 1e-7
+        assert sum(k == "impact" for _, k in events) == 1

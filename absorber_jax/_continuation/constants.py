@@ -13,6 +13,8 @@ KINDS = ("fold", "period_doubling", "neimark_sacker", "grazing")
 # the branch then resumes these fractions of the step beyond it (the first that converges)
 GRAZING_TOL = 1e-11
 GRAZING_STEPS = (0.05, 0.3, 1.0)
+# branch points looked back over for the last one clear of the walls
+GRAZING_LOOKBACK = 12
 # samples per period of the orbit whose closest approach to the walls is measured (then
 # refined by a parabola through the three samples around it)
 GRAZING_SAMPLES = 4096

@@ -25,6 +25,7 @@ from .constants import (
     CLOSE_RETURN_SKIP,
     CLOSE_RETURNS,
     CORNER_REDUCTION,
+    GRAZING_LOOKBACK,
     GRAZING_SAMPLES,
     GRAZING_STEPS,
     GRAZING_TOL,
@@ -301,6 +302,9 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             args = (copy.copy(drv), kind, a, b, len(points) - 1, locate,
                     float(np.linalg.norm(b["z"] - a["z"])))
             bifs.append(args if defer and locate else (yield from _bifurcation(*args)))
+        if rigid and locate and (float(a["ss"].impacts) == 0) != (float(b["ss"].impacts) == 0):
+            # impacts appear or vanish between the two points: a grazing orbit
+            bifs.append((yield from _graze_between(drv, a, b, len(points) - 1, points[:-1])))
         points.append(b)
         bar.update(1)
         bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
@@ -449,21 +453,25 @@ def _has_rigid_walls(system):
 
 def _approach(drv, point):
     """The orbit of branch point ``point``'s closest approach to a wall over its period
-    [m]: the largest penetration coordinate (negative while clear of every wall, zero on
-    an orbit that touches one), from ``GRAZING_SAMPLES`` samples of a simulation of the
-    orbit refined by a parabola, and the length scale of the motion [m]."""
-    from .._integration.settings import Integrator
-    from .._integration.simulate import simulate
+    [m], in free flight (every contact open, the walls not acting): the largest
+    penetration coordinate, negative while the orbit stays clear of every wall, zero where
+    it grazes one and positive beyond (where the true orbit impacts); from
+    ``GRAZING_SAMPLES`` samples per period refined by a parabola.  Also the length scale of
+    the motion [m]."""
+    import diffrax
 
     system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
     n = int(drv.prob.n)
     T = n * float(forcing.period)
-    ts = np.linspace(0.0, T, GRAZING_SAMPLES * n + 1)
-    y0 = np.asarray(system.to_public(jnp.asarray(point["x0"])))      # the orbit at t = 0
-    tr = simulate(system, forcing, T, y0=y0, ts=ts,
-                  integrator=Integrator(rtol=1e-12, atol=1e-14), throw=False)
-    s = jax.vmap(system.to_internal)(jnp.asarray(tr.ys))
-    pen = np.asarray(jax.vmap(system.penetrations)(s))            # (N, walls)
+    ts = jnp.linspace(0.0, T, GRAZING_SAMPLES * n + 1)
+    rest = system.rest_state()
+    free = jnp.zeros_like(system.mode_of(0.0, rest, forcing))
+    term = diffrax.ODETerm(lambda t, y, a: system.mode_rate(t, y, forcing, free))
+    sol = diffrax.diffeqsolve(term, diffrax.Tsit5(), 0.0, T, None, jnp.asarray(point["x0"]),
+                              saveat=diffrax.SaveAt(ts=ts), max_steps=1_000_000,
+                              stepsize_controller=diffrax.PIDController(rtol=1e-12, atol=1e-14),
+                              throw=False)
+    pen = np.asarray(jax.vmap(system.penetrations)(sol.ys))        # (N, walls)
     j, k = np.unravel_index(np.argmax(pen), pen.shape)
     y = pen[:, k]
     if 0 < j < len(y) - 1:
@@ -485,17 +493,34 @@ def _graze(drv, points, direction):
     the point beyond or None)``."""
     if len(points) < 2:
         return None, None
-    a, prev = points[-1], points[-2]
+    # the last points' approaches, back to the last one clear of the walls: an excursion
+    # through a wall shorter than one integrator step is not seen by the event location,
+    # so a branch may run a little beyond grazing before its step collapses
+    a = points[-1]
     ca, scale = _approach(drv, a)
-    cp, _ = _approach(drv, prev)
-    if not (ca < 0 and cp < ca) or float(a["ss"].impacts) != 0:
-        return None, None
+    tol = GRAZING_TOL * scale
     e = np.zeros_like(a["z"])
     e[-1] = direction
-    tol = GRAZING_TOL * scale
-    # bracket [lo: clear of the walls, hi: touching] in the scaled parameter
-    lo, glo, hi, best, evals = a["z"][-1], ca, None, a, 0
-    p_prev, g_prev = prev["z"][-1], cp
+    later, i, c_i = a, len(points) - 1, ca
+    while i > 0 and len(points) - i <= GRAZING_LOOKBACK and (
+            c_i >= -tol or float(points[i]["ss"].impacts) != 0):
+        later = points[i]
+        i -= 1
+        c_i, _ = _approach(drv, points[i])
+    if c_i >= -tol or float(points[i]["ss"].impacts) != 0:
+        return None, None
+    if i == len(points) - 1:
+        # still clear: the grazing lies ahead, extrapolated from the previous point
+        prev = points[i - 1]
+        cp, _ = _approach(drv, prev)
+        if not cp < c_i:
+            return None, None
+        lo, glo, hi, best = a["z"][-1], ca, None, a
+        p_prev, g_prev = prev["z"][-1], cp
+    else:
+        lo, glo, hi, best = points[i]["z"][-1], c_i, later["z"][-1], points[i]
+        p_prev, g_prev = lo, glo
+    evals = 0
     side = 0
     while evals < 60:
         if hi is None:
@@ -548,3 +573,56 @@ def _graze(drv, points, direction):
         return bif, None
     c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
     return bif, c
+
+
+def _graze_between(drv, a, b, index, earlier=()):
+    """The grazing orbit between branch points ``a`` and ``b``, where impacts appear or
+    vanish: on the clear side, the free-flight closest approach to the walls
+    (``_approach``) rises smoothly to zero at grazing; it is followed by secant steps from
+    the clear side, an iterate that impacts (or touches) closing the bracket from the other
+    (then halved), each iterate a natural-parameter corrector solve from the chord between
+    the two points.  A generator of corrector requests; returns the ``Bifurcation``."""
+    clear, touch = (a, b) if float(a["ss"].impacts) == 0 else (b, a)
+    gc0, scale = _approach(drv, clear)
+    tol = GRAZING_TOL * scale
+    # a clear point may lie a little beyond grazing already (an excursion through the wall
+    # shorter than an integrator step): back to the last one whose approach is negative
+    back = list(earlier)[::-1][:GRAZING_LOOKBACK] if clear is a else []
+    for q in back:
+        if gc0 < -tol or float(q["ss"].impacts) != 0:
+            break
+        clear, (gc0, _) = q, _approach(drv, q)
+        a = q
+    pa, pb = float(a["z"][-1]), float(b["z"][-1])
+    e = np.zeros_like(a["z"])
+    e[-1] = np.sign(pb - pa) or 1.0
+    lo, glo, hi = float(clear["z"][-1]), gc0, float(touch["z"][-1])
+    prev = None                                  # the previous clear iterate (p, g)
+    best, evals, located = clear, 0, False
+    while evals < 60 and glo < -tol:
+        p = 0.5 * (lo + hi)
+        if prev is not None and prev[1] != glo:
+            sec = lo - glo * (lo - prev[0]) / (glo - prev[1])
+            if min(lo, hi) < sec < max(lo, hi):
+                p = sec
+        w = (p - pa) / (pb - pa)
+        z = a["z"] + w * (b["z"] - a["z"])
+        z[-1] = p
+        c = yield (drv, z, e, False)
+        evals += 1
+        g = _approach(drv, c)[0] if c["ok"] else 0.0
+        if c["ok"] and float(c["ss"].impacts) == 0 and g < -tol:
+            prev, lo, glo, best = (lo, glo), p, g, c
+        elif c["ok"] and float(c["ss"].impacts) == 0 and g <= tol:
+            best, glo, located = c, g, True     # touching within the tolerance
+            break
+        else:
+            hi = p                               # impacts (or no orbit): beyond grazing
+        if abs(hi - lo) <= GRAZING_TOL * max(1.0, abs(lo)):
+            located = True
+            break
+    ss = best["ss"]
+    return Bifurcation(kind="grazing", value=float(best["z"][-1] * drv.prob.pscale),
+                       amplitude=float(ss.amplitude), state=np.asarray(ss.state),
+                       multipliers=np.asarray(ss.multipliers), index=index,
+                       period_multiple=drv.prob.n, located=bool(located), evaluations=evals)

@@ -28,9 +28,16 @@ from .simulate import _resolve_solver
 from .stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
 from .unrolled import unrolled
 
-# stick–slip segments allowed in one integration (the loop ends at t1 long before, unless
-# the motion chatters)
+# event-driven segments allowed in one integration of one forcing period (the loop ends at
+# t1 long before, unless the motion chatters without end), and per step of its budget over
+# several periods
 MAX_SEGMENTS = SEGMENTS_PER_PERIOD * 64
+STEPS_PER_SEGMENT = 64
+
+
+def max_segments(cfg):
+    """Segments allowed to a hybrid integration under ``cfg`` (more over more periods)."""
+    return max(MAX_SEGMENTS, int(cfg.max_steps) // STEPS_PER_SEGMENT)
 
 
 class Config(eqx.Module):
@@ -101,7 +108,7 @@ def integrate(dyn, x0, t0, t1, ts, cfg):
             system, forcing, x0, t0, t1, ts, solver=cfg.solver,
             rtol=cfg.rtol * cfg.tol_factors[0], atol=cfg.atol * cfg.tol_factors[1],
             max_steps=cfg.max_steps, scale=state_scale(system, forcing),
-            max_segments=MAX_SEGMENTS)
+            max_segments=max_segments(cfg))
         return (x[None] if ts is None else ys), status
     if large_state(system):
         # run lane by lane, a large state's plain integrations pay diffrax's per-stage loop
@@ -140,7 +147,7 @@ def event_counts(dyn, x0, t1, cfg):
         system, forcing, jax.lax.stop_gradient(x0), 0.0, jax.lax.stop_gradient(t1), None,
         solver=cfg.solver, rtol=cfg.rtol * cfg.tol_factors[0],
         atol=cfg.atol * cfg.tol_factors[1], max_steps=cfg.max_steps,
-        scale=state_scale(system, forcing), max_segments=MAX_SEGMENTS)
+        scale=state_scale(system, forcing), max_segments=max_segments(cfg))
     return impacts, closed
 
 

@@ -83,15 +83,6 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     def switch(t, x, mode):
         return system.switch_function(t, x * scale, forcing, mode)
 
-    def apex(t, x, mode):
-        # minus the switch's rate along the flow, per the integration's span (dimensionless)
-        _, gdot = jax.jvp(lambda tt, xx: switch(tt, xx, mode), (t, x),
-                          (jnp.ones_like(t), rate(t, x, mode)))
-        return -gdot * span
-
-    apexes = system.grazing_events
-    span = jax.lax.stop_gradient(t1 - t0)
-
     t0b, t1b = _sg(t0), _sg(t1)
     x0 = system.admissible_state(t0b, x0 * scale, forcing) / scale
     mode0 = system.mode_of(t0b, _sg(x0) * scale, forcing)
@@ -103,7 +94,11 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     # late in a long run one rounding step of t moves g by |ġ| ulp(t) ~ 1e-12.  The located
     # time is then polished by one Newton step dt = -g/ġ below.
     root = _EventBisection(rtol=1e-14, atol=EVENT_TOL, flip=False)
-    ctrl = diffrax.PIDController(rtol=rtol, atol=atol, norm=norm)
+    # rigid walls: no step longer than the system's limit, so that an excursion beyond a
+    # wall shorter than one step (crossed and crossed back between the step's ends, near
+    # grazing) stays shallow (see AbstractSystem.event_step_limit)
+    ctrl = diffrax.PIDController(rtol=rtol, atol=atol, norm=norm,
+                                 dtmax=system.event_step_limit(forcing))
     ts_b = None if ts is None else _sg(ts)
 
     def segment(t, x, mode):
@@ -112,85 +107,33 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         # rounding above zero (a state put back on a rigid wall, moving off it) must not
         # hide the next crossing when one step spans a whole short flight (a Zeno sequence)
         start = jnp.maximum(_sg(switch(t, x, mode)), 0.0)
-        cross = lambda t, y, args, **kw: switch(t, y, mode) - start  # noqa: E731
-        if apexes:
-            # and a maximum of the switch (its rate falling through zero): a crossing there
-            # and back within one step shows no sign change at the step's ends (a rigid
-            # wall grazed), so the switch is checked at each maximum (see body); a start
-            # at a maximum (released from rest) does not fire it again
-            # (one event function, the larger of the two: the root finder takes a scalar)
-            a0 = _sg(apex(t, x, mode))
-            a_start = jnp.where(jnp.abs(a0) <= EVENT_TOL, EVENT_TOL, 0.0)
-            event = diffrax.Event(
-                lambda t, y, args, **kw: jnp.maximum(cross(t, y, args),
-                                                     apex(t, y, mode) - a_start),
-                root_finder=root, direction=True)
-            return diffrax.diffeqsolve(term, solver, t, t1b, None, x, saveat=saveat_of(t),
-                                       stepsize_controller=ctrl, max_steps=max_steps,
-                                       throw=False, event=event,
-                                       adjoint=diffrax.ForwardMode()), start, a_start
-        else:
-            event = diffrax.Event(cross, root_finder=root, direction=True)
-        return diffrax.diffeqsolve(term, solver, t, t1b, None, x, saveat=saveat_of(t),
-                                   stepsize_controller=ctrl, max_steps=max_steps,
-                                   throw=False, event=event,
-                                   adjoint=diffrax.ForwardMode()), start, 0.0
-
-    def saveat_of(t):
+        event = diffrax.Event(lambda t, y, args, **kw: switch(t, y, mode) - start,
+                              root_finder=root, direction=True)
         subs = [diffrax.SubSaveAt(t1=True)]
         if ts is not None:
             subs.append(diffrax.SubSaveAt(ts=jnp.clip(ts_b, t, t1b)))
-        return diffrax.SaveAt(subs=subs)
-
-    def back_to_crossing(t_apex, x_apex, t_start, mode):
-        """From a maximum of the switch where it is positive, backwards to its crossing."""
-        term = diffrax.ODETerm(lambda t_, x_, a: rate(t_, x_, mode))
-        event = diffrax.Event(lambda t, y, args, **kw: switch(t, y, mode), root_finder=root,
-                              direction=False)
-        return diffrax.diffeqsolve(term, solver, t_apex, t_start, None, x_apex,
-                                   saveat=diffrax.SaveAt(t1=True), stepsize_controller=ctrl,
-                                   max_steps=max_steps, throw=False, event=event,
-                                   adjoint=diffrax.ForwardMode())
+        saveat = diffrax.SaveAt(subs=subs)
+        return diffrax.diffeqsolve(term, solver, t, t1b, None, x, saveat=saveat,
+                                   stepsize_controller=ctrl, max_steps=max_steps,
+                                   throw=False, event=event, adjoint=diffrax.ForwardMode())
 
     def body(c):
         t, x, mode, k, st, nsteps, ys, impacts, closed = c
-        sol, start, a_start = segment(t, x, mode)
-        t_raw, x_raw, result = sol.ts[0][-1], sol.ys[0][-1], sol.result
-        apex_stop = jnp.zeros((), bool)
-        if apexes:
-            fired = sol.event_mask
-            t_a = _sg(t_raw)
-            x_a = x_raw - rate(t_a, _sg(x_raw), mode) * (t_raw - t_a)
-            # which of the two reached zero: the crossing, or a maximum of the switch
-            g_a = _sg(switch(t_a, x_a, mode))
-            at_apex = fired & (jnp.abs(g_a - start) > jnp.abs(_sg(apex(t_a, x_a, mode))
-                                                              - a_start))
-            hit = fired & ~at_apex
-            missed = at_apex & (g_a > 0)
-            back = jax.lax.cond(jnp.any(missed), lambda: back_to_crossing(t_a, x_a, t, mode),
-                                lambda: back_to_crossing(t_a, x_a, t_a, mode))
-            apex_stop = at_apex & ~missed & ~hit
-            hit = hit | missed
-            t_raw = jnp.where(missed, back.ts[-1], t_raw)
-            x_raw = jnp.where(missed, back.ys[-1], x_raw)
-            back_ok = ((back.result == diffrax.RESULTS.successful)
-                       | (back.result == diffrax.RESULTS.event_occurred))
-            result = diffrax.RESULTS.where(missed & ~back_ok, back.result, result)
-        else:
-            hit = sol.event_mask
+        sol = segment(t, x, mode)
+        hit = sol.event_mask
         # a located event counts even when the bisection ran out of iterations (rounding
         # of t kept |g| above its tolerance): the residual check below decides
-        search_out = result == diffrax.RESULTS.promote(
+        search_out = sol.result == diffrax.RESULTS.promote(
             optx.RESULTS.nonlinear_max_steps_reached)
-        ok = ((result == diffrax.RESULTS.successful)
-              | (result == diffrax.RESULTS.event_occurred) | (hit & search_out))
-        st = jnp.where(ok, Status.SUCCESS, from_diffrax(result))
-        t_end = _sg(t_raw)
-        x_end = x_raw
+        ok = ((sol.result == diffrax.RESULTS.successful)
+              | (sol.result == diffrax.RESULTS.event_occurred) | (hit & search_out))
+        st = jnp.where(ok, Status.SUCCESS, from_diffrax(sol.result))
+        t_end = _sg(sol.ts[0][-1])
+        x_end = sol.ys[0][-1]
         # the state at the located time with its tangent at fixed time (whatever tangent
         # diffrax gives the event time, it is removed here), then the event-time tangent by
         # the implicit function theorem
-        x_hat = x_end - rate(t_end, _sg(x_end), mode) * (t_raw - t_end)
+        x_hat = x_end - rate(t_end, _sg(x_end), mode) * (sol.ts[0][-1] - t_end)
         g = switch(t_end, x_hat, mode)
         _, gdot = jax.jvp(lambda tt, xx: switch(tt, xx, mode), (t_end, _sg(x_hat)),
                           (jnp.ones_like(t_end), rate(t_end, _sg(x_hat), mode)))
@@ -204,8 +147,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         new_mode, x_proj = system.next_mode(t_end, x_star * scale, forcing, mode)
         x_proj = x_proj / scale
         new_mode = jnp.where(hit, new_mode, mode)
-        x_new = jnp.where(hit, x_proj - rate(t_end, _sg(x_proj), new_mode) * dt,
-                          jnp.where(apex_stop, x_hat, x_end))
+        x_new = jnp.where(hit, x_proj - rate(t_end, _sg(x_proj), new_mode) * dt, x_end)
         if ts is not None:
             # samples of this segment: from its start (inclusive) to the event (exclusive)
             in_seg = (ts_b >= t) & ((ts_b < t_end) | (~hit & (ts_b <= t_end)))

@@ -37,6 +37,10 @@ from .contact import AbstractCompliantLaw, AbstractContactLaw
 # a Zeno sequence of impacts shorter than this fraction of the forcing period ends in
 # sticking at once (see the module docstring)
 ZENO_FRACTION = 1e-7
+# the integrator takes at least this many steps per forcing period with rigid walls (an
+# impact is located from a sign change at the ends of a step: a graze shorter than a step
+# is missed, so the steps bound how deep a missed excursion can be)
+RIGID_STEPS_PER_PERIOD = 256
 
 
 class Restitution(AbstractContactLaw):

@@ -116,13 +116,12 @@ class AbstractSystem(eqx.Module):
         """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
         raise NotImplementedError
 
-    @property
-    def grazing_events(self) -> bool:
-        """Whether a hybrid integration also stops at each maximum of the switching function
-        and checks it there: a switch crossed and crossed back within one integrator step
-        (a rigid wall grazed) shows no sign change at the step's ends.  ``True`` for rigid
-        impacts."""
-        return False
+    def event_step_limit(self, forcing):
+        """The longest integrator step [s] of a hybrid integration (``None``: no limit).  An
+        event is located from a sign change of the switching function at the ends of a step,
+        so a switch crossed and crossed back within one step (a rigid wall grazed) is not
+        seen; a limit bounds how deep such an excursion can be."""
+        return None
 
     def admissible_state(self, t, s, forcing):
         """Internal state ``s`` at the start of a hybrid integration, mapped into the set the

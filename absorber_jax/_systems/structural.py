@@ -29,7 +29,7 @@ import numpy as np
 
 from .._core.checks import is_traced
 from .base import AbstractSystem
-from .._laws.restitution import ZENO_FRACTION
+from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
 from .elements import AbstractElement, is_exact, is_rigid
 from .linear import finite_or_zero
 from .structure import LinearStructure
@@ -571,9 +571,10 @@ class StructuralSystem(AbstractSystem):
         new_mode = jnp.where(hit, jnp.where(impact & stick, side, 0), mode)
         return new_mode, jnp.where(impact, jnp.where(stick, plastic, bounced), s)
 
-    @property
-    def grazing_events(self) -> bool:
-        return self.hybrid and bool(self._rigid())
+    def event_step_limit(self, forcing):
+        # rigid walls: an excursion missed within one step is at most ~(ωh)²/8 of the
+        # motion's length deep (h = T / RIGID_STEPS_PER_PERIOD: ~7.5e-5 at 256)
+        return forcing.period / RIGID_STEPS_PER_PERIOD if self._rigid() else None
 
     def admissible_state(self, t, s, forcing):
         if not self._rigid():

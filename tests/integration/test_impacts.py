@@ -265,3 +265,23 @@ def test_continuation_passes_grazing_and_locates_it():
         y1, events = ref.run(y0, 0.0, 2 * np.pi)
         assert np.max(np.abs(y1[-1] - y0)) < 1e-7
         assert sum(k == "impact" for _, k in events) == 1
+
+
+@pytest.mark.slow
+def test_sweep_continuation_and_attractor_map_agree_on_an_impacting_orbit():
+    # one stable orbit (37.5 rad/s, four impacts a period) seen by every entry point
+    omega = 37.5
+    f = aj.Harmonic(amplitude=F0, omega=omega)
+    ss = aj.steady_state(rigid(), f)
+    fr = aj.frequency_response(rigid(), [omega], amplitude=F0)
+    br = aj.continuation(rigid(), aj.Harmonic(amplitude=F0, omega=37.0), "omega",
+                         bounds=(37.0, 38.0))
+    i = int(np.argmin(np.abs(np.asarray(br.values) - omega)))
+    amap = aj.attractors(rigid(), f, samples=8)
+    periodic = [a for a in amap.attractors if a.periodic and a.stable]
+    assert bool(ss.stable) and float(ss.impacts) == 4.0
+    assert fr.impacts[0] == 4.0 and bool(fr.stable[0])
+    assert abs(br.values[i] - omega) < 0.05
+    assert float(np.asarray(br.steady.impacts)[i]) == 4.0 and bool(np.asarray(br.stable)[i])
+    near = [a for a in periodic if abs(a.amplitude - float(ss.amplitude)) < 1e-6]
+    assert near and near[0].impacts == 4.0 and near[0].period_multiple == 1

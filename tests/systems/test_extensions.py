@@ -32,7 +32,7 @@ class CubicSpring(aj.AbstractElement):
         return 0.25 * self.k3 * (x[0] - x[1]) ** 4
 
 
-class CubicWall(aj.AbstractContactLaw):
+class CubicWall(aj.AbstractCompliantLaw):
     """``f(δ, δ̇) = k δ³ + c δ̇`` (a user-written contact law)."""
 
     exponent = 3.0

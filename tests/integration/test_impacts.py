@@ -281,7 +281,7 @@ def test_sweep_continuation_and_attractor_map_agree_on_an_impacting_orbit():
     periodic = [a for a in amap.attractors if a.periodic and a.stable]
     assert bool(ss.stable) and float(ss.impacts) == 4.0
     assert fr.impacts[0] == 4.0 and bool(fr.stable[0])
-    assert abs(br.values[i] - omega) < 0.05
+    assert abs(br.values[i] - omega) < 0.2              # the nearest branch point
     assert float(np.asarray(br.steady.impacts)[i]) == 4.0 and bool(np.asarray(br.stable)[i])
     near = [a for a in periodic if abs(a.amplitude - float(ss.amplitude)) < 1e-6]
     assert near and near[0].impacts == 4.0 and near[0].period_multiple == 1

@@ -43,7 +43,6 @@ from ._laws.contact import (  # noqa: E402
     HuntCrossley,
     KelvinVoigt,
 )
-from ._laws.restitution import Restitution, restitution_of  # noqa: E402
 from ._laws.friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
 from ._laws.helpers import (  # noqa: E402
     effective_mass,
@@ -54,6 +53,7 @@ from ._laws.helpers import (  # noqa: E402
     linear_contact_time,
     linear_restitution,
 )
+from ._laws.restitution import Restitution, restitution_of  # noqa: E402
 from ._periodic.attractors import Attractor, AttractorMap, attractors, bifurcation_diagram  # noqa: E402
 from ._periodic.base import AbstractSteadyMethod  # noqa: E402
 from ._periodic.marching import Marching  # noqa: E402

@@ -61,7 +61,7 @@ def sweep_building():
                           ("penalty Hertz 5.2e10", hertz)):
         system = building(contact)
 
-        def run():
+        def run(system=system):
             return aj.frequency_response(system, omegas, amplitude=500.0)
 
         fr, t_first = timed(run)
@@ -90,7 +90,7 @@ def continue_hard():
         system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3, contact=contact)
         forcing = aj.Harmonic(amplitude=3.0, omega=20.0)
 
-        def run():
+        def run(system=system, forcing=forcing):
             return aj.continuation(system, forcing, "omega", bounds=(20.0, 45.0))
 
         br, t_first = timed(run)

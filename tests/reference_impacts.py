@@ -152,7 +152,7 @@ class RigidImpactAbsorber:
                     x1, v1 = osc(tq)
                     return np.array([x1, v1, x1 + side * self.d, v1])
 
-                def pull(tq, side=side):
+                def pull(tq, side=side, osc=osc):
                     x1, v1 = osc(tq)
                     a = (self._force(tq) - self.c * v1 - self.k * x1) / (self.M + self.m)
                     return side * self.m * a

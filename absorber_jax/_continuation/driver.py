@@ -8,6 +8,7 @@ import copy
 import dataclasses
 import math
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -458,8 +459,6 @@ def _approach(drv, point):
     it grazes one and positive beyond (where the true orbit impacts); from
     ``GRAZING_SAMPLES`` samples per period refined by a parabola.  Also the length scale of
     the motion [m]."""
-    import diffrax
-
     system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
     n = int(drv.prob.n)
     T = n * float(forcing.period)

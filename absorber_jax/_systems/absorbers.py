@@ -27,7 +27,6 @@ from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
 from .base import AbstractSystem
 from .linear import _internal, finite_or_zero, harmonic_response, state_at_zero, two_mass_matrices
 
-
 # a rigid-impact absorber counts as stuck at a wall at the start of an integration when
 # within this fraction of the gap of it and slower than this fraction of the velocity scale
 STICK_TOLERANCE = 1e-9

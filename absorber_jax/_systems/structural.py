@@ -28,8 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import is_traced
-from .base import AbstractSystem
 from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
+from .base import AbstractSystem
 from .elements import AbstractElement, is_exact, is_rigid
 from .linear import finite_or_zero
 from .structure import LinearStructure

@@ -80,13 +80,17 @@ class RigidImpactAbsorber:
             tz = 2 * abs(w_after) / (abs(a_rel) * (1 - self.e))
             if tz <= self.zeno * self.T:
                 vc = v1 + self.m * w / (self.M + self.m)
+                self.losses.append(0.5 * meff * w**2)          # plastic: all of it
                 return np.array([x1, vc, x2, vc]), side
+        self.losses.append(0.5 * meff * (1 - self.e**2) * w**2)
         return np.array([x1, v1n, x2, v2n]), 0
 
     def run(self, y0, t0, t1, ts=None):
         """States at ``ts`` (or at ``t1``) from public state ``y0 = [x1, v1, x2, v2]`` at
         ``t0``; returns ``(ys, events)`` with ``events`` a list of ``(t, kind)``,
-        ``kind`` in ``{"impact", "stick", "release"}``."""
+        ``kind`` in ``{"impact", "stick", "release"}``; the kinetic energy each impact took
+        [J] is appended to ``self.losses``."""
+        self.losses = []
         y = np.array(y0, float)
         t, mode = t0, 0
         ts = np.array([t1]) if ts is None else np.asarray(ts, float)

@@ -54,6 +54,42 @@ class _Oscillator:
         return x, v
 
 
+def _first_crossing(fns, t0, t1, h, h_max, accept=lambda tr, k: True):
+    """The first upcrossing ``(t, k)`` after ``t0`` (before ``t1``) of any of the functions
+    ``fns`` that ``accept`` takes, bracketed on steps from ``h`` growing by 1.5 up to
+    ``h_max`` and located by brentq; ``None`` when there is none."""
+    ta = t0
+    while ta < t1:
+        tb = min(ta + h, t1)
+        found = None
+        for k, fn in enumerate(fns):
+            if fn(ta) <= 0 < fn(tb):
+                tr = brentq(fn, ta, tb, xtol=1e-16, rtol=1e-15, maxiter=500)
+                if accept(tr, k) and (found is None or tr < found[0]):
+                    found = (tr, k)
+        if found is not None:
+            return found
+        ta, h = tb, min(h_max, h * 1.5)
+    return None
+
+
+def _first_step(T, last_speed, accel):
+    """The first bracketing step of a flight: T/4000, at most a quarter of the flight a
+    constant acceleration gives after leaving a wall at ``last_speed``."""
+    h = T / 4000
+    if last_speed is not None:
+        h = min(h, 0.25 * 2 * abs(last_speed) / (abs(accel) + 1e-300))
+    return max(h, 1e-13)
+
+
+def _fill(out, ts, t, t_end, to_end, state):
+    """``out`` at the samples ``ts`` of the piece from ``t`` to ``t_end`` (inclusive when
+    the piece runs ``to_end``) from ``state(t)``."""
+    sel = (ts >= t) & ((ts <= t_end) if to_end else (ts < t_end))
+    for i in np.nonzero(sel)[0]:
+        out[i] = state(ts[i])
+
+
 class RigidImpactAbsorber:
     def __init__(self, M, k, c, m, gap, e, F0, W, zeno=1e-7):
         self.M, self.k, self.c, self.m, self.d, self.e = M, k, c, m, gap, e
@@ -110,32 +146,18 @@ class RigidImpactAbsorber:
                     s = state(tq)
                     return side * (s[2] - s[0]) - self.d
 
-                h = self.T / 4000
-                if last_w is not None:
-                    a = abs(self._free_accel(t, y[0], y[1])) + 1e-300
-                    h = min(h, 0.25 * 2 * abs(last_w) / a)
-                h = max(h, 1e-13)
-                ta, hit = t, None
-                while ta < t1 and hit is None:
-                    tb = min(ta + h, t1)
-                    for side in (1, -1):
-                        ga, gb = gfun(ta, side), gfun(tb, side)
-                        if ga <= 0 < gb:
-                            tr = brentq(gfun, ta, tb, args=(side,), xtol=1e-16, rtol=1e-15,
-                                        maxiter=500)
-                            sr = state(tr)
-                            # rounding about the wall just after a release (zero relative
-                            # velocity, zero acceleration) is no impact
-                            approach = side * (sr[3] - sr[1])
-                            if approach > 1e-12 * self.d * self.W and (hit is None
-                                                                       or tr < hit[0]):
-                                hit = (tr, side)
-                    ta = tb
-                    h = min(self.T / 4000, h * 1.5)
+                def approaching(tr, k):
+                    # rounding about the wall just after a release (zero relative
+                    # velocity, zero acceleration) is no impact
+                    sr = state(tr)
+                    return (1, -1)[k] * (sr[3] - sr[1]) > 1e-12 * self.d * self.W
+
+                h = _first_step(self.T, last_w, self._free_accel(t, y[0], y[1]))
+                found = _first_crossing([lambda tq: gfun(tq, 1), lambda tq: gfun(tq, -1)],
+                                        t, t1, h, self.T / 4000, approaching)
+                hit = None if found is None else (found[0], (1, -1)[found[1]])
                 t_end = hit[0] if hit else t1
-                sel = (ts >= t) & (ts <= t_end) if hit is None else (ts >= t) & (ts < t_end)
-                for i in np.nonzero(sel)[0]:
-                    out[i] = state(ts[i])
+                _fill(out, ts, t, t_end, hit is None, state)
                 if hit is None:
                     t = t1
                     y = state(t1)
@@ -161,17 +183,10 @@ class RigidImpactAbsorber:
                     a = (self._force(tq) - self.c * v1 - self.k * x1) / (self.M + self.m)
                     return side * self.m * a
 
-                h = self.T / 4000
-                ta, t_rel = t, None
-                while ta < t1 and t_rel is None:
-                    tb = min(ta + h, t1)
-                    if pull(ta) <= 0 < pull(tb):
-                        t_rel = brentq(pull, ta, tb, xtol=1e-16, rtol=1e-15, maxiter=500)
-                    ta = tb
+                found = _first_crossing([pull], t, t1, self.T / 4000, self.T / 4000)
+                t_rel = None if found is None else found[0]
                 t_end = t_rel if t_rel is not None else t1
-                sel = (ts >= t) & (ts <= t_end) if t_rel is None else (ts >= t) & (ts < t_end)
-                for i in np.nonzero(sel)[0]:
-                    out[i] = state(ts[i])
+                _fill(out, ts, t, t_end, t_rel is None, state)
                 y = state(t_end)
                 t = t_end
                 if t_rel is None:
@@ -209,24 +224,13 @@ class RigidStopOscillator:
                 def g(tq, osc=osc):
                     return osc(tq)[0] - self.d
 
-                h = self.T / 4000
-                if last_v is not None:
-                    a = abs(self._accel(t, *y)) + 1e-300
-                    h = min(h, 0.25 * 2 * abs(last_v) / a)
-                h = max(h, 1e-13)
-                ta, hit = t, None
-                while ta < t1 and hit is None:
-                    tb = min(ta + h, t1)
-                    if g(ta) <= 0 < g(tb):
-                        tr = brentq(g, ta, tb, xtol=1e-16, rtol=1e-15, maxiter=500)
-                        if osc(tr)[1] > 1e-12 * self.d * self.W:
-                            hit = tr
-                    ta = tb
-                    h = min(self.T / 4000, h * 1.5)
+                h = _first_step(self.T, last_v, self._accel(t, *y))
+                found = _first_crossing([g], t, t1, h, self.T / 4000,
+                                        lambda tr, k, osc=osc: osc(tr)[1] > 1e-12 * self.d
+                                        * self.W)
+                hit = None if found is None else found[0]
                 t_end = t1 if hit is None else hit
-                sel = (ts >= t) & ((ts <= t_end) if hit is None else (ts < t_end))
-                for i in np.nonzero(sel)[0]:
-                    out[i] = osc(ts[i])
+                _fill(out, ts, t, t_end, hit is None, lambda tq, osc=osc: np.array(osc(tq)))
                 if hit is None:
                     y, t = np.array(osc(t1)), t1
                     break
@@ -245,16 +249,10 @@ class RigidStopOscillator:
                 def push(tq):
                     return -self._accel(tq, self.d, 0.0)
 
-                h = self.T / 4000
-                ta, t_rel = t, None
-                while ta < t1 and t_rel is None:
-                    tb = min(ta + h, t1)
-                    if push(ta) <= 0 < push(tb):
-                        t_rel = brentq(push, ta, tb, xtol=1e-16, rtol=1e-15, maxiter=500)
-                    ta = tb
+                found = _first_crossing([push], t, t1, self.T / 4000, self.T / 4000)
+                t_rel = None if found is None else found[0]
                 t_end = t1 if t_rel is None else t_rel
-                sel = (ts >= t) & ((ts <= t_end) if t_rel is None else (ts < t_end))
-                out[np.nonzero(sel)[0]] = [self.d, 0.0]
+                _fill(out, ts, t, t_end, t_rel is None, lambda tq: np.array([self.d, 0.0]))
                 y, t = np.array([self.d, 0.0]), t_end
                 if t_rel is None:
                     break

@@ -20,6 +20,7 @@ from .._core.units import signals_of
 from .._integration.flow import (
     make_config,
 )
+from .._periodic.orbit import has_rigid_walls, parabolic_peak
 from .branch import Bifurcation, Branch
 from .constants import (
     CLOSE_RETURN_PERIODS,
@@ -255,7 +256,7 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     termination = "start_failed" if not first["ok"] else None
     h = method.step
     parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
-    rigid = _has_rigid_walls(drv.prob.system)
+    rigid = has_rigid_walls(drv.prob.system)
     bar.update(1)
     while termination is None:
         if len(points) >= method.max_points:
@@ -447,9 +448,16 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
     return first, rejoined
 
 
-def _has_rigid_walls(system):
-    """Whether ``system`` has rigid impacts (an event-driven system with contact walls)."""
-    return bool(system.hybrid) and system.penetrations(system.rest_state()).shape[0] > 0
+@eqx.filter_jit
+def _free_flight(system, forcing, x0, mode, ts):
+    """Internal states at ``ts`` from ``x0`` at ``ts[0]`` in ``mode`` throughout (one
+    compilation per system structure)."""
+    term = diffrax.ODETerm(lambda t, y, a: system.mode_rate(t, y, forcing, mode))
+    return diffrax.diffeqsolve(term, diffrax.Tsit5(), ts[0], ts[-1], None, x0,
+                               saveat=diffrax.SaveAt(ts=ts), max_steps=1_000_000,
+                               stepsize_controller=diffrax.PIDController(rtol=1e-12,
+                                                                         atol=1e-14),
+                               throw=False).ys
 
 
 def _approach(drv, point):
@@ -458,107 +466,100 @@ def _approach(drv, point):
     penetration coordinate, negative while the orbit stays clear of every wall, zero where
     it grazes one and positive beyond (where the true orbit impacts); from
     ``GRAZING_SAMPLES`` samples per period refined by a parabola.  Also the length scale of
-    the motion [m]."""
-    system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
-    n = int(drv.prob.n)
-    T = n * float(forcing.period)
-    ts = jnp.linspace(0.0, T, GRAZING_SAMPLES * n + 1)
-    rest = system.rest_state()
-    free = jnp.zeros_like(system.mode_of(0.0, rest, forcing))
-    term = diffrax.ODETerm(lambda t, y, a: system.mode_rate(t, y, forcing, free))
-    sol = diffrax.diffeqsolve(term, diffrax.Tsit5(), 0.0, T, None, jnp.asarray(point["x0"]),
-                              saveat=diffrax.SaveAt(ts=ts), max_steps=1_000_000,
-                              stepsize_controller=diffrax.PIDController(rtol=1e-12, atol=1e-14),
-                              throw=False)
-    pen = np.asarray(jax.vmap(system.penetrations)(sol.ys))        # (N, walls)
-    j, k = np.unravel_index(np.argmax(pen), pen.shape)
-    y = pen[:, k]
-    if 0 < j < len(y) - 1:
-        a, b, c = y[j - 1], y[j], y[j + 1]
-        den = a - 2 * b + c
-        peak = b - 0.125 * (a - c) ** 2 / den if den < 0 else b
-    else:
-        peak = y[j]
-    scale = float(np.max(np.abs(np.asarray(drv.prob.s0))))
-    return float(peak), scale
+    the motion [m].  Kept in ``point`` (a point is asked again while a grazing is
+    bracketed)."""
+    if "approach" not in point:
+        system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
+        n = int(drv.prob.n)
+        ts = jnp.linspace(0.0, n * forcing.period, GRAZING_SAMPLES * n + 1)
+        free = jnp.zeros_like(system.mode_of(0.0, system.rest_state(), forcing))
+        ys = _free_flight(system, forcing, jnp.asarray(point["x0"]), free, ts)
+        pen = jax.vmap(system.penetrations)(ys[:-1])                # (N, walls), periodic
+        k = int(np.argmax(np.max(np.asarray(pen), axis=0)))
+        peak = float(parabolic_peak(pen[:, k], jnp.argmax(pen[:, k])))
+        point["approach"] = (peak, float(np.max(np.abs(np.asarray(drv.prob.s0)))))
+    return point["approach"]
 
 
-def _graze(drv, points, direction):
-    """At a step collapse of a branch with rigid impacts: if the last point's orbit nears a
-    wall (its closest approach falling towards zero), locate the grazing orbit by regula
-    falsi in the parameter on that approach (natural-parameter corrector solves; an
-    iterate beyond grazing impacts, approach 0), then solve the orbit a little beyond it.
-    A generator of corrector requests (as ``_follow``); returns ``(Bifurcation or None,
-    the point beyond or None)``."""
-    if len(points) < 2:
-        return None, None
-    # the last points' approaches, back to the last one clear of the walls: an excursion
-    # through a wall shorter than one integrator step is not seen by the event location,
-    # so a branch may run a little beyond grazing before its step collapses
-    a = points[-1]
-    ca, scale = _approach(drv, a)
-    tol = GRAZING_TOL * scale
-    e = np.zeros_like(a["z"])
-    e[-1] = direction
-    later, i, c_i = a, len(points) - 1, ca
-    while i > 0 and len(points) - i <= GRAZING_LOOKBACK and (
-            c_i >= -tol or float(points[i]["ss"].impacts) != 0):
-        later = points[i]
-        i -= 1
-        c_i, _ = _approach(drv, points[i])
-    if c_i >= -tol or float(points[i]["ss"].impacts) != 0:
-        return None, None
-    if i == len(points) - 1:
-        # still clear: the grazing lies ahead, extrapolated from the previous point
-        prev = points[i - 1]
-        cp, _ = _approach(drv, prev)
-        if not cp < c_i:
-            return None, None
-        lo, glo, hi, best = a["z"][-1], ca, None, a
-        p_prev, g_prev = prev["z"][-1], cp
-    else:
-        lo, glo, hi, best = points[i]["z"][-1], c_i, later["z"][-1], points[i]
-        p_prev, g_prev = lo, glo
-    evals = 0
-    side = 0
-    while evals < 60:
-        if hi is None:
-            p = lo - glo * (lo - p_prev) / (glo - g_prev)           # secant beyond lo
+def _locate_grazing(drv, clear, g_clear, hi, prev, e, chord, index):
+    """The grazing orbit beyond branch point ``clear`` (free-flight closest approach
+    ``g_clear < 0``, see ``_approach``) in the parameter direction ``e``: secant steps on
+    the approach from the clear side (from ``prev``, an earlier clear ``(p, g)``, while no
+    bracket is known), an iterate that impacts (or has no orbit) closing the bracket at
+    ``hi`` from the other side (then halved).  Each iterate is a natural-parameter
+    corrector solve predicted on the chord ``(za, zb)`` between two branch points, or from
+    ``clear``'s orbit.  A generator of corrector requests; returns ``(Bifurcation, the
+    orbit there)``."""
+    tol = GRAZING_TOL * _approach(drv, clear)[1]
+    lo, glo, best, evals, located = float(clear["z"][-1]), g_clear, clear, 0, False
+    while evals < 60 and glo < -tol:
+        p = None if hi is None else 0.5 * (lo + hi)
+        if prev is not None and prev[1] != glo:
+            sec = lo - glo * (lo - prev[0]) / (glo - prev[1])
+            if hi is None or min(lo, hi) < sec < max(lo, hi):
+                p = sec
+        if p is None:
+            break
+        if chord is None:
+            z = clear["z"].copy()
         else:
-            p = lo - glo * (hi - lo) / (0.0 - glo) * (0.5 if side == 1 else 1.0)
-            if not min(lo, hi) < p < max(lo, hi):
-                p = 0.5 * (lo + hi)
-        z = best["z"].copy()
+            za, zb = chord
+            z = za + (p - za[-1]) / (zb[-1] - za[-1]) * (zb - za)
         z[-1] = p
         c = yield (drv, z, e, False)
         evals += 1
-        if not c["ok"]:
-            # no orbit converged there (the corrector's tolerance at the grazing orbit
-            # itself, where the period map is not differentiable): bracket from above
-            hi, side = p, side + 1
-            continue
-        gc, _ = _approach(drv, c)
-        if float(c["ss"].impacts) == 0 and abs(gc) <= tol:
-            lo, glo, best = p, gc, c
+        g = _approach(drv, c)[0] if c["ok"] else 0.0
+        if c["ok"] and float(c["ss"].impacts) == 0 and g < -tol:
+            prev, lo, glo, best = (lo, glo), p, g, c
+        elif c["ok"] and float(c["ss"].impacts) == 0 and g <= tol:
+            best, glo, located = c, g, True     # touching within the tolerance
             break
-        touching = float(c["ss"].impacts) > 0 or gc >= -tol
-        if not touching:
-            p_prev, g_prev, lo, glo, best = lo, glo, p, gc, c
-            side = 0
-            if abs(gc) <= tol:
-                break
         else:
-            hi = p
-            side += 1
+            hi = p                               # impacts (or no orbit): beyond grazing
         if hi is not None and abs(hi - lo) <= GRAZING_TOL * max(1.0, abs(lo)):
+            located = True
             break
-    located = abs(glo) <= 1e3 * tol or (hi is not None
-                                         and abs(hi - lo) <= 1e3 * GRAZING_TOL * abs(lo))
     ss = best["ss"]
-    bif = Bifurcation(kind="grazing", value=float(best["z"][-1] * drv.prob.pscale),
-                      amplitude=float(ss.amplitude), state=np.asarray(ss.state),
-                      multipliers=np.asarray(ss.multipliers), index=len(points) - 1,
-                      period_multiple=drv.prob.n, located=bool(located), evaluations=evals)
+    return Bifurcation(kind="grazing", value=float(best["z"][-1] * drv.prob.pscale),
+                       amplitude=float(ss.amplitude), state=np.asarray(ss.state),
+                       multipliers=np.asarray(ss.multipliers), index=index,
+                       period_multiple=drv.prob.n, located=bool(located),
+                       evaluations=evals), best
+
+
+def _graze(drv, points, direction):
+    """At a step collapse of a branch with rigid impacts: if its last points near a wall
+    (their closest approach rising towards zero, or past it), locate the grazing orbit
+    (``_locate_grazing``), then solve the orbit a little beyond it.  A generator of
+    corrector requests (as ``_follow``); returns ``(Bifurcation or None, the point
+    beyond or None)``."""
+    if len(points) < 2:
+        return None, None
+    # back to the last point clear of the walls: an excursion through a wall shorter than
+    # one integrator step is not seen by the event location, so a branch may run a little
+    # beyond grazing before its step collapses
+    a = points[-1]
+    tol = GRAZING_TOL * _approach(drv, a)[1]
+    e = np.zeros_like(a["z"])
+    e[-1] = direction
+    later, i = None, len(points) - 1
+    c_i = _approach(drv, points[i])[0]
+    while i > 0 and len(points) - i <= GRAZING_LOOKBACK and (
+            c_i >= -tol or float(points[i]["ss"].impacts) != 0):
+        later, i = points[i], i - 1
+        c_i = _approach(drv, points[i])[0]
+    if c_i >= -tol or float(points[i]["ss"].impacts) != 0:
+        return None, None
+    prev = None
+    if later is None:
+        # still clear: the grazing lies ahead, extrapolated from the previous point
+        cp = _approach(drv, points[i - 1])[0]
+        if not cp < c_i:
+            return None, None
+        prev = (float(points[i - 1]["z"][-1]), cp)
+    bif, best = yield from _locate_grazing(
+        drv, points[i], c_i, None if later is None else float(later["z"][-1]), prev, e,
+        None if later is None else (points[i]["z"], later["z"]), len(points) - 1)
     # beyond: the impacting orbit near grazing is reached from the grazing one with the
     # whole Newton budget (the period map's derivative grows like the inverse square root
     # of the distance to grazing), a larger step where a small one fails
@@ -576,52 +577,20 @@ def _graze(drv, points, direction):
 
 def _graze_between(drv, a, b, index, earlier=()):
     """The grazing orbit between branch points ``a`` and ``b``, where impacts appear or
-    vanish: on the clear side, the free-flight closest approach to the walls
-    (``_approach``) rises smoothly to zero at grazing; it is followed by secant steps from
-    the clear side, an iterate that impacts (or touches) closing the bracket from the other
-    (then halved), each iterate a natural-parameter corrector solve from the chord between
-    the two points.  A generator of corrector requests; returns the ``Bifurcation``."""
+    vanish (``_locate_grazing`` from the clear one, predicted on the chord between them).
+    A generator of corrector requests; returns the ``Bifurcation``."""
     clear, touch = (a, b) if float(a["ss"].impacts) == 0 else (b, a)
-    gc0, scale = _approach(drv, clear)
+    g_clear, scale = _approach(drv, clear)
     tol = GRAZING_TOL * scale
     # a clear point may lie a little beyond grazing already (an excursion through the wall
     # shorter than an integrator step): back to the last one whose approach is negative
     back = list(earlier)[::-1][:GRAZING_LOOKBACK] if clear is a else []
     for q in back:
-        if gc0 < -tol or float(q["ss"].impacts) != 0:
+        if g_clear < -tol or float(q["ss"].impacts) != 0:
             break
-        clear, (gc0, _) = q, _approach(drv, q)
-        a = q
-    pa, pb = float(a["z"][-1]), float(b["z"][-1])
+        clear, a, g_clear = q, q, _approach(drv, q)[0]
     e = np.zeros_like(a["z"])
-    e[-1] = np.sign(pb - pa) or 1.0
-    lo, glo, hi = float(clear["z"][-1]), gc0, float(touch["z"][-1])
-    prev = None                                  # the previous clear iterate (p, g)
-    best, evals, located = clear, 0, False
-    while evals < 60 and glo < -tol:
-        p = 0.5 * (lo + hi)
-        if prev is not None and prev[1] != glo:
-            sec = lo - glo * (lo - prev[0]) / (glo - prev[1])
-            if min(lo, hi) < sec < max(lo, hi):
-                p = sec
-        w = (p - pa) / (pb - pa)
-        z = a["z"] + w * (b["z"] - a["z"])
-        z[-1] = p
-        c = yield (drv, z, e, False)
-        evals += 1
-        g = _approach(drv, c)[0] if c["ok"] else 0.0
-        if c["ok"] and float(c["ss"].impacts) == 0 and g < -tol:
-            prev, lo, glo, best = (lo, glo), p, g, c
-        elif c["ok"] and float(c["ss"].impacts) == 0 and g <= tol:
-            best, glo, located = c, g, True     # touching within the tolerance
-            break
-        else:
-            hi = p                               # impacts (or no orbit): beyond grazing
-        if abs(hi - lo) <= GRAZING_TOL * max(1.0, abs(lo)):
-            located = True
-            break
-    ss = best["ss"]
-    return Bifurcation(kind="grazing", value=float(best["z"][-1] * drv.prob.pscale),
-                       amplitude=float(ss.amplitude), state=np.asarray(ss.state),
-                       multipliers=np.asarray(ss.multipliers), index=index,
-                       period_multiple=drv.prob.n, located=bool(located), evaluations=evals)
+    e[-1] = np.sign(float(b["z"][-1]) - float(a["z"][-1])) or 1.0
+    bif, _ = yield from _locate_grazing(drv, clear, g_clear, float(touch["z"][-1]), None, e,
+                                        (a["z"], b["z"]), index)
+    return bif

@@ -104,11 +104,7 @@ def integrate(dyn, x0, t0, t1, ts, cfg):
     (exact stick–slip) segment by segment (``_integration.stickslip``)."""
     system, forcing = dyn
     if system.hybrid:
-        ys, x, status, _, _, _ = hybrid_solve(
-            system, forcing, x0, t0, t1, ts, solver=cfg.solver,
-            rtol=cfg.rtol * cfg.tol_factors[0], atol=cfg.atol * cfg.tol_factors[1],
-            max_steps=cfg.max_steps, scale=state_scale(system, forcing),
-            max_segments=max_segments(cfg))
+        ys, x, status, _, _, _ = _hybrid(dyn, x0, t0, t1, ts, cfg)
         return (x[None] if ts is None else ys), status
     if large_state(system):
         # run lane by lane, a large state's plain integrations pay diffrax's per-stage loop
@@ -142,13 +138,20 @@ def event_counts(dyn, x0, t1, cfg):
     """Impacts and the time [s] a contact is held closed, from scaled state ``x0`` at
     ``t = 0`` to ``t1``, counted at the events of a hybrid system (rigid impacts happen at
     instants that no sampling of the orbit resolves); no derivatives."""
-    system, forcing = jax.lax.stop_gradient(dyn)
-    _, _, _, _, _, (impacts, closed) = hybrid_solve(
-        system, forcing, jax.lax.stop_gradient(x0), 0.0, jax.lax.stop_gradient(t1), None,
-        solver=cfg.solver, rtol=cfg.rtol * cfg.tol_factors[0],
-        atol=cfg.atol * cfg.tol_factors[1], max_steps=cfg.max_steps,
-        scale=state_scale(system, forcing), max_segments=max_segments(cfg))
+    _, _, _, _, _, (impacts, closed) = _hybrid(
+        jax.lax.stop_gradient(dyn), jax.lax.stop_gradient(x0), 0.0,
+        jax.lax.stop_gradient(t1), None, cfg)
     return impacts, closed
+
+
+def _hybrid(dyn, x0, t0, t1, ts, cfg):
+    """``hybrid_solve`` of ``dyn`` under ``cfg`` (its tolerances, step and segment
+    budgets) on the scaled state."""
+    system, forcing = dyn
+    return hybrid_solve(system, forcing, x0, t0, t1, ts, solver=cfg.solver,
+                        rtol=cfg.rtol * cfg.tol_factors[0], atol=cfg.atol * cfg.tol_factors[1],
+                        max_steps=cfg.max_steps, scale=state_scale(system, forcing),
+                        max_segments=max_segments(cfg))
 
 
 def flat_inputs(primals, tangents):

@@ -48,12 +48,12 @@ from .._core.checks import check_scalar, require_x64
 from .._core.legacy import no_more
 from .._core.status import Status
 from .._core.units import Signals, signals_of
-from .._integration.flow import event_counts, flow_along, make_config, state_scale
+from .._integration.flow import flow_along, make_config, state_scale
 from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
 from .marching import Marching
-from .orbit import SteadyState, _parabolic_peak, closures
+from .orbit import SteadyState, contact_statistics, parabolic_peak
 from .steady import check_system_and_forcing, method_from, solve_point
 
 # samples per forcing period of the statistics window (at least)
@@ -226,19 +226,14 @@ def _march_all(system, forcing, x0s, cfg, method, window, samples):
         x = system.to_internal(ss.state) / scale
         ys, st, lyap = window_statistics(system, forcing, x, window, samples, cfg)
         s = ys * scale
-        if system.hybrid and system.penetrations(s[0]).shape[0]:
-            # rigid impacts: counted at the events (instants no sampling resolves)
-            T = 2 * jnp.pi / forcing.omega
-            impacts = event_counts((system, forcing), x, window * T,
-                                   cfg.over_periods(window))[0] / window
-        else:
-            impacts = closures(jax.vmap(system.penetrations)(s)) / window
+        impacts, _ = contact_statistics(system, forcing, x, s, window, cfg, window,
+                                        cyclic=False)
         s, ys = s[:-1], ys[:-1]
         obs = jax.vmap(system.observable)(s)
         sec = ys[::samples]
         spread = jnp.max(jnp.linalg.norm(sec - jnp.mean(sec, axis=0), axis=1))
-        hi = _parabolic_peak(obs, jnp.argmax(obs))
-        lo = _parabolic_peak(obs, jnp.argmin(obs))
+        hi = parabolic_peak(obs, jnp.argmax(obs))
+        lo = parabolic_peak(obs, jnp.argmin(obs))
         # the period seen in the window: the smallest n whose stroboscopic samples of the
         # observable repeat to PERIOD_TOL of its amplitude (a floating absorber's orbit
         # family settles too slowly for marching's tail test, but repeats here)

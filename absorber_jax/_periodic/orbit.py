@@ -136,7 +136,7 @@ def read_through(cls, names, where):
                                     doc=f"``SteadyState.{name}`` per {where}."))
 
 
-def _parabolic_peak(y, i):
+def parabolic_peak(y, i):
     """Extreme value of the periodic samples ``y`` near index ``i`` (parabola through 3)."""
     n = y.shape[0]
     a, b, c = y[(i - 1) % n], y[i], y[(i + 1) % n]
@@ -145,7 +145,7 @@ def _parabolic_peak(y, i):
 
 
 def _half_p2p(y):
-    return 0.5 * (_parabolic_peak(y, jnp.argmax(y)) - _parabolic_peak(y, jnp.argmin(y)))
+    return 0.5 * (parabolic_peak(y, jnp.argmax(y)) - parabolic_peak(y, jnp.argmin(y)))
 
 
 def closures(pen, cyclic=False):
@@ -158,21 +158,26 @@ def closures(pen, cyclic=False):
     return jnp.sum(closed[1:] & ~closed[:-1])
 
 
-def contact_statistics(system, forcing, x0, s, n, cfg, n_cap=1):
+def has_rigid_walls(system):
+    """Whether ``system`` has rigid impacts (an event-driven system with contact walls)."""
+    return bool(system.hybrid) and system.penetrations(system.rest_state()).shape[0] > 0
+
+
+def contact_statistics(system, forcing, x0, s, n, cfg, n_cap=1, *, cyclic=True):
     """Impacts per forcing period and the fraction of time a contact is closed over the
     ``n`` forcing periods from scaled state ``x0`` sampled as internal states ``s``: from
-    the samples' penetrations, or (hybrid systems with contacts: rigid impacts) counted at
-    the events."""
+    the samples' penetrations (``cyclic``: around a closed orbit), or (rigid impacts)
+    counted at the events."""
     pen = jax.vmap(system.penetrations)(s)                            # (N, walls)
     if pen.shape[1] == 0:
         zero = jnp.zeros((), s.dtype)
         return zero, zero
-    if system.hybrid:
+    if has_rigid_walls(system):
         T = 2 * jnp.pi / forcing.omega
         impacts, closed = event_counts((system, forcing), x0, n * T, cfg.over_periods(n_cap))
         return (impacts / n).astype(s.dtype), closed / (n * T)
     closed = jnp.any(pen > 0, axis=1)
-    return (closures(pen, cyclic=True) / n).astype(s.dtype), jnp.mean(closed.astype(s.dtype))
+    return (closures(pen, cyclic=cyclic) / n).astype(s.dtype), jnp.mean(closed.astype(s.dtype))
 
 
 def sample_orbit(system, forcing, x0, n, cfg, n_cap=1, *, with_end=False):

@@ -331,12 +331,10 @@ class ImpactAbsorber(AbstractAbsorberSystem):
 
     def _references(self, forcing):
         """Velocity [m/s] and force [N] scales of the forced pair (switching functions
-        and tolerances are relative to them)."""
-        M, k, _ = self.primary
-        w = forcing.omega
-        L = jnp.maximum(forcing.amplitude / (k + M * w**2), self.gap)
+        and tolerances are relative to them): the state's velocity scale ``Lω``, and the
+        force ``F0 m/(M+m)`` that holds the absorber to the forced pair."""
         f_ref = forcing.amplitude * self.m / (self.M + self.m)
-        return L * w, jnp.maximum(f_ref, 1e-300)
+        return self.state_scale(forcing)[3], jnp.maximum(f_ref, 1e-300)
 
     def mode_of(self, t, s, forcing):
         u, w = s[2], s[3]

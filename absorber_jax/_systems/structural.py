@@ -561,7 +561,6 @@ class StructuralSystem(AbstractSystem):
         laws = [e.contact for e in self._rigid_elements()]
         e_k = jnp.stack([law.e for law in laws])[k]
         bounced, plastic = impulse(e_k), impulse(0.0)
-        _, _, a_free, _ = self._rigid_response(t, bounced, forcing)
         r_free, _ = self._rigid_rate(t, bounced, forcing, jnp.where(hit, 0, mode))
         a_rel = self._normal_rates(bounced, r_free)[k]
         w_after = self._normals(bounced)[1][k]

@@ -15,15 +15,15 @@ from .._periodic.orbit import (
     SteadyState,
     read_through,
 )
-from .constants import KINDS
+from .constants import KINDS, REACHED
 
 
 class Bifurcation(eqx.Module):
     """A bifurcation found on a [`Branch`][absorber_jax.Branch].
 
     ``kind``: ``"fold"``, ``"period_doubling"``, ``"neimark_sacker"`` or ``"grazing"`` (an
-    orbit touching a rigid wall at zero relative velocity: impacts appear or vanish there;
-    located by the orbit's closest approach to the wall); ``value``: the
+    orbit touching a rigid wall at zero relative velocity, where an impact is born or dies;
+    located by the closest approach of the orbit's flights to the walls); ``value``: the
     located parameter value; ``amplitude``: the observable's amplitude there; ``state``:
     public orbit state; ``multipliers``: Floquet multipliers there; ``index``: it lies
     between branch points ``index`` and ``index + 1``; ``located``: the location converged
@@ -56,9 +56,11 @@ class Branch(SteadyResults, eqx.Module):
     folds); ``steady``: the point solve's [`SteadyState`][absorber_jax.SteadyState], batched (its
     fields read through: ``amplitude``, ``dof_amplitude``, ``stable``, ``multipliers``, ``status``
     ...); ``bifurcations``: the [`Bifurcation`][absorber_jax.Bifurcation]s found, in branch order;
-    ``termination``: why the branch ended (``"bounds"``, ``"max_points"``, ``"rejoined"``,
-    ``"closed"``, ``"step_collapse"`` or ``"start_failed"``); ``steps``: corrector iterations per
-    point are ``iterations``.  The measured fields are NaN at failed points; ``signals``: the
+    ``termination``: why the branch ended (``"bounds"``, ``"rejoined"``, ``"closed"``: it
+    went where it was asked to, ``reached`` is True; ``"max_points"``, ``"step_collapse"``,
+    ``"grazing"``: a grazing it located but could not continue through, or
+    ``"start_failed"``: it did not, and ``ending()`` says why and what to try);
+    corrector iterations per point are ``iterations``.  The measured fields are NaN at failed points; ``signals``: the
     names and SI units of what they measure, as the CSV headers, plot labels and
     ``to_xarray`` attributes give them."""
 
@@ -80,12 +82,42 @@ class Branch(SteadyResults, eqx.Module):
             raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
         return [b for b in self.bifurcations if b.kind == kind]
 
+    @property
+    def reached(self) -> bool:
+        """Whether the branch went where it was asked to (a bound, back onto the branch it
+        was switched from, or round a closed branch)."""
+        return self.termination in REACHED
+
+    def ending(self) -> str:
+        """How the branch ended, in words, with what to try where it stopped short."""
+        v = np.asarray(self.values)
+        last = f"{self.parameter} = {v[-1]:.6g}" if v.size else "its start"
+        if self.reached:
+            return f"the branch ended at {last} ({self.termination})"
+        why = {
+            "max_points": "it used its whole point budget; try: raise "
+                          "PseudoArclength(max_points=...), or a larger step",
+            "step_collapse": "the corrector failed down to the smallest step (a sharp "
+                             "corner or a branch point); try: a smaller "
+                             "PseudoArclength(min_step=...), a tighter integrator rtol, or "
+                             "band_continuation, which starts branches beyond it",
+            "grazing": "it grazes a rigid wall there and the orbit with the impact born "
+                       "there was not found (the period map is singular at grazing); try: "
+                       "start a continuation just beyond the grazing value, "
+                       "band_continuation, or aj.attractors there",
+            "start_failed": "no first orbit was found; try: another guess (guess=...), a "
+                            "start value where the response is simpler, or "
+                            "band_continuation",
+        }[self.termination]
+        return f"the branch stopped short at {last}: {why}"
+
     def summary(self):
         """The branch as a JSON-ready dict: parameter, period, points, how it ended, the range
         covered, stable and failed points, corrector iterations and the bifurcations."""
         st = np.asarray(self.stable)
         return dict(parameter=self.parameter, period_multiple=self.period_multiple,
-                    points=len(self), termination=self.termination,
+                    points=len(self), termination=self.termination, reached=self.reached,
+                    ending=self.ending(),
                     range=[float(np.min(self.values)), float(np.max(self.values))],
                     stable_points=int(st.sum()), failed_points=int((~self.ok).sum()),
                     corrector_iterations_median=float(np.median(self.iterations)),

@@ -8,15 +8,24 @@ FORCING_PARAMETERS = ("omega", "amplitude")
 KINDS = ("fold", "period_doubling", "neimark_sacker", "grazing")
 
 
+# why a branch ended, and which of these mean it went where it was asked to: to a bound,
+# back onto the branch it was switched from, or round a closed branch
+TERMINATIONS = ("bounds", "rejoined", "closed", "max_points", "step_collapse", "grazing",
+                "start_failed")
+REACHED = ("bounds", "rejoined", "closed")
+
+
 # grazing (rigid impacts): located when the orbit's closest approach to a wall is within
 # this fraction of the wall's length scale (or its bracket in the parameter within it);
-# the branch then resumes these fractions of the step beyond it (the first that converges)
+# the branch then resumes these fractions of the step beyond it (the first that converges
+# to an orbit with the impact born there; then as far behind it, where the new branch
+# folds back), or ends "grazing" where none does
 GRAZING_TOL = 1e-11
 GRAZING_STEPS = (0.05, 0.3, 1.0)
 # branch points looked back over for the last one clear of the walls
 GRAZING_LOOKBACK = 12
-# samples per period of the orbit whose closest approach to the walls is measured (then
-# refined by a parabola through the three samples around it)
+# samples per period of the orbit whose closest approach to the walls is measured (each
+# apex of its flights then refined by the cubic Hermite interpolant of its interval)
 GRAZING_SAMPLES = 4096
 
 

@@ -47,6 +47,7 @@ Analysis* (Springer, 2010), ch. 7 (periodic orbits by shooting).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -175,7 +176,10 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
 
     with _bar(method.max_points, parameter, progress) as bar:
         points, bifs, termination = _run(_follow(drv, first, rejoin, locate, bar))
-    return _branch(points, bifs, termination, drv, value0, system)
+    branch = _branch(points, bifs, termination, drv, value0, system)
+    if not branch.reached:
+        warnings.warn(f"continuation: {branch.ending()}", RuntimeWarning, stacklevel=2)
+    return branch
 
 
 def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
@@ -262,6 +266,12 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                              lanes)
         for (i, j), b in zip(todo, found):
             out[i][0][1][j] = b
+    missed = _gaps(out, lo, hi)
+    if missed:
+        parts = ", ".join(f"{a:.6g}-{b:.6g}" for a, b in sorted(missed))
+        warnings.warn(f"band_continuation: no branch reached {parameter} in {parts}; try: "
+                      f"more starts or fill passes, or aj.attractors there (the response "
+                      f"may not be periodic)", RuntimeWarning, stacklevel=2)
     return tuple(_branch(*r, drv, v, system) for r, drv, v in out)
 
 

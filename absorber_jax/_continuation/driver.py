@@ -8,7 +8,6 @@ import copy
 import dataclasses
 import math
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -17,10 +16,8 @@ import numpy as np
 from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
 from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
-from .._integration.flow import (
-    make_config,
-)
-from .._periodic.orbit import has_rigid_walls, parabolic_peak
+from .._integration.flow import event_counts, integrate_flow, make_config, state_scale
+from .._periodic.orbit import has_rigid_walls
 from .branch import Bifurcation, Branch
 from .constants import (
     CLOSE_RETURN_PERIODS,
@@ -272,19 +269,34 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                  and h > method.step / CORNER_REDUCTION)
         if not b["ok"] or sharp:
             if h <= method.min_step * (1 + 1e-12):
-                beyond = None
+                bif, beyond = None, None
                 if rigid:
                     bif, beyond = yield from _graze(drv, points, float(np.sign(a["t"][-1])))
                     if bif is not None:
                         bifs.append(bif)
                 if beyond is None:
-                    termination = "step_collapse"
+                    # a located grazing the branch could not pass, or a collapse elsewhere
+                    located = bif is not None and bif.located
+                    termination = "grazing" if located else "step_collapse"
                     break
                 points.append(drv.rescale(beyond))
                 bar.update(1)
                 h = method.step
                 continue
             h = max(0.5 * h, method.min_step)
+            continue
+        if rigid and not _clear(drv, b) and _clear(drv, a) and _impacts(a) == _impacts(b):
+            # a flight of b passes through a wall (an excursion shorter than an integrator
+            # step, which event location does not see): not an orbit; the grazing between
+            # a and b, then on from the orbit with the impact born there
+            bif, beyond = yield from _through(drv, a, b, len(points) - 1)
+            bifs.append(bif)
+            if beyond is None:
+                termination = "grazing"
+                break
+            points.append(drv.rescale(beyond))
+            bar.update(1)
+            h = method.step
             continue
         p_b = b["z"][-1]
         if not drv.lo <= p_b <= drv.hi:
@@ -304,9 +316,11 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             args = (copy.copy(drv), kind, a, b, len(points) - 1, locate,
                     float(np.linalg.norm(b["z"] - a["z"])))
             bifs.append(args if defer and locate else (yield from _bifurcation(*args)))
-        if rigid and locate and (float(a["ss"].impacts) == 0) != (float(b["ss"].impacts) == 0):
-            # impacts appear or vanish between the two points: a grazing orbit
-            bifs.append((yield from _graze_between(drv, a, b, len(points) - 1, points[:-1])))
+        if rigid and locate and _born(a, b):
+            # an impact is born or dies between the two points: a grazing orbit
+            bif = yield from _graze_between(drv, a, b, len(points) - 1, points[:-1])
+            if bif.located or min(_impacts(a), _impacts(b)) == 0:
+                bifs.append(bif)
         points.append(b)
         bar.update(1)
         bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
@@ -449,36 +463,104 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
 
 
 @eqx.filter_jit
-def _free_flight(system, forcing, x0, mode, ts):
-    """Internal states at ``ts`` from ``x0`` at ``ts[0]`` in ``mode`` throughout (one
-    compilation per system structure)."""
-    term = diffrax.ODETerm(lambda t, y, a: system.mode_rate(t, y, forcing, mode))
-    return diffrax.diffeqsolve(term, diffrax.Tsit5(), ts[0], ts[-1], None, x0,
-                               saveat=diffrax.SaveAt(ts=ts), max_steps=1_000_000,
-                               stepsize_controller=diffrax.PIDController(rtol=1e-12,
-                                                                         atol=1e-14),
-                               throw=False).ys
+def _orbit_kinematics(system, forcing, x0, ts, cfg):
+    """Each wall's penetration [m], its rate [m/s] and its acceleration [m/s²] along the
+    orbit from internal state ``x0`` at ``ts[0] = 0``, saved at ``ts``: the hybrid orbit
+    (its impacts and holds included) sampled, the rates those of free flight (every
+    contact open) at each sample; and its impacts.  One compilation per system
+    structure."""
+    scale = state_scale(system, forcing)
+    ys, _ = integrate_flow((system, forcing), x0 / scale, ts[-1], ts, cfg=cfg)
+    impacts, _ = event_counts((system, forcing), x0 / scale, ts[-1], cfg)
+    free = jnp.zeros_like(system.mode_of(0.0, system.rest_state(), forcing))
+
+    def kinematics(t, s):
+        def rate(t, s):
+            v = system.mode_rate(t, s, forcing, free)
+            return jax.jvp(system.penetrations, (s,), (v,))[1]
+
+        v = system.mode_rate(t, s, forcing, free)
+        r, a = jax.jvp(rate, (t, s), (jnp.ones_like(t), v))
+        return system.penetrations(s), r, a
+
+    return jax.vmap(kinematics)(ts, ys * scale), impacts
+
+
+def _apex(pen, rate, acc, dt, length, speed):
+    """The highest apex of free flight towards a wall among sampled penetrations ``pen``,
+    rates ``rate`` and accelerations ``acc`` ``(N + 1, walls)`` a time ``dt`` apart: where
+    the rate turns from approaching to leaving *smoothly* (the change over the interval the
+    trapezoidal rule of the accelerations, within a tenth: an impact reverses the rate at
+    once), refined by the cubic Hermite interpolant of the interval.  Intervals that touch a
+    hold (at the wall, at rest relative to it) are not apexes.  ``-length`` when there is
+    none."""
+    held = (np.abs(rate) <= 1e-12 * speed) & (np.abs(pen) <= 1e-10 * length)
+    p0, p1, r0, r1 = pen[:-1], pen[1:], rate[:-1] * dt, rate[1:] * dt
+    smooth = np.abs(r1 - r0 - 0.5 * (acc[:-1] + acc[1:]) * dt**2) <= 0.1 * (r0 - r1)
+    turn = (r0 > 0) & (r1 <= 0) & smooth & ~held[:-1] & ~held[1:]
+    if not np.any(turn):
+        return -length
+    p0, p1, r0, r1 = p0[turn], p1[turn], r0[turn], r1[turn]
+    # H(τ) = (2τ³ - 3τ² + 1) p0 + (τ³ - 2τ² + τ) r0 + (-2τ³ + 3τ²) p1 + (τ³ - τ²) r1
+    a = 6 * (p0 - p1) + 3 * (r0 + r1)
+    b = 6 * (p1 - p0) - 4 * r0 - 2 * r1
+    c = r0
+    disc = np.sqrt(np.maximum(b * b - 4 * a * c, 0.0))
+    q = -0.5 * (b + np.where(b < 0, -1.0, 1.0) * disc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        roots = np.stack([q / a, c / q])                     # both roots, stably
+    inside = (roots >= 0) & (roots <= 1)
+    tau = np.where(inside[0], roots[0], np.where(inside[1], roots[1], 0.5))
+    tau = np.clip(np.nan_to_num(tau, nan=0.5), 0.0, 1.0)
+    h = ((2 * tau**3 - 3 * tau**2 + 1) * p0 + (tau**3 - 2 * tau**2 + tau) * r0
+         + (-2 * tau**3 + 3 * tau**2) * p1 + (tau**3 - tau**2) * r1)
+    return float(np.max(np.maximum(h, np.maximum(p0, p1))))
 
 
 def _approach(drv, point):
     """The orbit of branch point ``point``'s closest approach to a wall over its period
-    [m], in free flight (every contact open, the walls not acting): the largest
-    penetration coordinate, negative while the orbit stays clear of every wall, zero where
-    it grazes one and positive beyond (where the true orbit impacts); from
-    ``GRAZING_SAMPLES`` samples per period refined by a parabola.  Also the length scale of
-    the motion [m].  Kept in ``point`` (a point is asked again while a grazing is
-    bracketed)."""
+    [m] away from its impacts: the highest apex of its free flights between them
+    (``_apex`` on ``GRAZING_SAMPLES`` samples per period of the hybrid orbit), negative
+    while every flight stays clear, zero where one grazes a wall (a new impact is born) and
+    positive where one passes through it (an excursion shorter than an integrator step,
+    which event location does not see: then a positive value, as where the orbit
+    integrated closely has more impacts).  Also the length scale of the motion [m].  Kept
+    in ``point`` (a point is asked again while a grazing is bracketed)."""
     if "approach" not in point:
         system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
         n = int(drv.prob.n)
-        ts = jnp.linspace(0.0, n * forcing.period, GRAZING_SAMPLES * n + 1)
-        free = jnp.zeros_like(system.mode_of(0.0, system.rest_state(), forcing))
-        ys = _free_flight(system, forcing, jnp.asarray(point["x0"]), free, ts)
-        pen = jax.vmap(system.penetrations)(ys[:-1])                # (N, walls), periodic
-        k = int(np.argmax(np.max(np.asarray(pen), axis=0)))
-        peak = float(parabolic_peak(pen[:, k], jnp.argmax(pen[:, k])))
-        point["approach"] = (peak, float(np.max(np.abs(np.asarray(drv.prob.s0)))))
+        N = GRAZING_SAMPLES * n
+        ts = jnp.linspace(0.0, n * forcing.period, N + 1)
+        cfg = dataclasses.replace(drv.prob.cfg.over_periods(n), rtol=1e-12, atol=1e-12)
+        (pen, rate, acc), impacts = _orbit_kinematics(
+            system, forcing, jnp.asarray(point["x0"]), ts, cfg)
+        length = float(np.max(np.abs(np.asarray(drv.prob.s0))))
+        if int(impacts) != _impacts(point):
+            # the orbit integrated closely impacts where the branch's did not: one of its
+            # flights passes through a wall
+            g = GRAZING_TOL * length * 1e3
+        else:
+            g = _apex(*(np.asarray(a) for a in (pen, rate, acc)), float(ts[1]), length,
+                      length * float(forcing.omega))
+        point["approach"] = (g, length)
     return point["approach"]
+
+
+def _impacts(point):
+    """Impacts over the response period of branch point ``point``."""
+    return round(float(point["ss"].impacts) * int(point["ss"].period_multiple))
+
+
+def _born(a, b):
+    """Whether an impact may be born (or die) between branch points ``a`` and ``b`` by a
+    flight grazing a wall: their impacts differ, by one where both impact without holds
+    (where the ball is held, the number of impacts of its chatter changes without
+    grazing)."""
+    ia, ib = _impacts(a), _impacts(b)
+    if min(ia, ib) == 0:
+        return ia != ib
+    return abs(ia - ib) == 1 and float(a["ss"].contact_fraction) == 0 == float(
+        b["ss"].contact_fraction)
 
 
 def _locate_grazing(drv, clear, g_clear, hi, prev, e, chord, index):
@@ -492,6 +574,7 @@ def _locate_grazing(drv, clear, g_clear, hi, prev, e, chord, index):
     orbit there)``."""
     tol = GRAZING_TOL * _approach(drv, clear)[1]
     lo, glo, best, evals, located = float(clear["z"][-1]), g_clear, clear, 0, False
+    count = _impacts(clear)
     while evals < 60 and glo < -tol:
         p = None if hi is None else 0.5 * (lo + hi)
         if prev is not None and prev[1] != glo:
@@ -509,13 +592,13 @@ def _locate_grazing(drv, clear, g_clear, hi, prev, e, chord, index):
         c = yield (drv, z, e, False)
         evals += 1
         g = _approach(drv, c)[0] if c["ok"] else 0.0
-        if c["ok"] and float(c["ss"].impacts) == 0 and g < -tol:
+        if c["ok"] and _impacts(c) == count and g < -tol:
             prev, lo, glo, best = (lo, glo), p, g, c
-        elif c["ok"] and float(c["ss"].impacts) == 0 and g <= tol:
+        elif c["ok"] and _impacts(c) == count and g <= tol:
             best, glo, located = c, g, True     # touching within the tolerance
             break
         else:
-            hi = p                               # impacts (or no orbit): beyond grazing
+            hi = p                      # another impact (or no orbit): beyond grazing
         if hi is not None and abs(hi - lo) <= GRAZING_TOL * max(1.0, abs(lo)):
             located = True
             break
@@ -544,11 +627,12 @@ def _graze(drv, points, direction):
     e[-1] = direction
     later, i = None, len(points) - 1
     c_i = _approach(drv, points[i])[0]
-    while i > 0 and len(points) - i <= GRAZING_LOOKBACK and (
-            c_i >= -tol or float(points[i]["ss"].impacts) != 0):
+    while i > 0 and len(points) - i <= GRAZING_LOOKBACK and c_i >= -tol:
         later, i = points[i], i - 1
         c_i = _approach(drv, points[i])[0]
-    if c_i >= -tol or float(points[i]["ss"].impacts) != 0:
+    # the clear point's flights approach a wall; those after it (through the wall, or with
+    # the impact born there) have at least its impacts
+    if c_i >= -tol or any(_impacts(q) < _impacts(points[i]) for q in points[i + 1:]):
         return None, None
     prev = None
     if later is None:
@@ -560,33 +644,58 @@ def _graze(drv, points, direction):
     bif, best = yield from _locate_grazing(
         drv, points[i], c_i, None if later is None else float(later["z"][-1]), prev, e,
         None if later is None else (points[i]["z"], later["z"]), len(points) - 1)
-    # beyond: the impacting orbit near grazing is reached from the grazing one with the
-    # whole Newton budget (the period map's derivative grows like the inverse square root
-    # of the distance to grazing), a larger step where a small one fails
-    for frac in GRAZING_STEPS:
-        z = best["z"].copy()
-        z[-1] = best["z"][-1] + direction * frac * drv.method.step
-        c = yield (drv, z, e, True)
-        if c["ok"]:
-            break
-    if not c["ok"]:
-        return bif, None
-    c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
-    return bif, c
+    return (yield from _beyond(drv, bif, best, direction, e))
+
+
+def _through(drv, a, b, index):
+    """Branch point ``b`` has a flight through a wall that ``a``'s flights clear (with as
+    many impacts): locate the grazing orbit between them (``_locate_grazing`` from ``a``,
+    on their chord) and solve the orbit beyond it (``_beyond``).  A generator of corrector
+    requests; returns ``(Bifurcation, the point beyond or None)``."""
+    e = np.zeros_like(a["z"])
+    e[-1] = np.sign(float(b["z"][-1]) - float(a["z"][-1])) or 1.0
+    bif, best = yield from _locate_grazing(drv, a, _approach(drv, a)[0], float(b["z"][-1]),
+                                           None, e, (a["z"], b["z"]), index)
+    return (yield from _beyond(drv, bif, best, float(e[-1]), e))
+
+
+def _beyond(drv, bif, best, direction, e):
+    """The orbit with the impact born at the grazing orbit ``best`` (of ``bif``), reached
+    from it with the whole Newton budget (the period map's derivative grows like the
+    inverse square root of the distance to grazing), a larger step where a small one fails;
+    ahead first, then behind (where the new branch folds back at grazing: a nonsmooth
+    fold).  A generator of corrector requests; returns ``(bif, the point or None)``, its
+    tangent leading away from the grazing orbit."""
+    count = _impacts(best)
+    for side in (1.0, -1.0):
+        for frac in GRAZING_STEPS:
+            z = best["z"].copy()
+            z[-1] = best["z"][-1] + side * direction * frac * drv.method.step
+            c = yield (drv, z, e, True)
+            if c["ok"] and _impacts(c) != count and _clear(drv, c):
+                c["t"] = c["t"] * np.sign(c["t"] @ (c["z"] - best["z"]) or 1.0)
+                return bif, c
+    return bif, None
+
+
+def _clear(drv, point):
+    """Whether no flight of branch point ``point`` passes through a wall."""
+    g, length = _approach(drv, point)
+    return g <= GRAZING_TOL * length
 
 
 def _graze_between(drv, a, b, index, earlier=()):
     """The grazing orbit between branch points ``a`` and ``b``, where impacts appear or
     vanish (``_locate_grazing`` from the clear one, predicted on the chord between them).
     A generator of corrector requests; returns the ``Bifurcation``."""
-    clear, touch = (a, b) if float(a["ss"].impacts) == 0 else (b, a)
+    clear, touch = (a, b) if _impacts(a) < _impacts(b) else (b, a)
     g_clear, scale = _approach(drv, clear)
     tol = GRAZING_TOL * scale
     # a clear point may lie a little beyond grazing already (an excursion through the wall
     # shorter than an integrator step): back to the last one whose approach is negative
     back = list(earlier)[::-1][:GRAZING_LOOKBACK] if clear is a else []
     for q in back:
-        if g_clear < -tol or float(q["ss"].impacts) != 0:
+        if g_clear < -tol or _impacts(q) != _impacts(clear):
             break
         clear, a, g_clear = q, q, _approach(drv, q)[0]
     e = np.zeros_like(a["z"])

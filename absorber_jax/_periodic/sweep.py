@@ -428,13 +428,20 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
               chunk_size, shard, progress)
     squeeze = params is None
     get = (lambda a: a[0]) if squeeze else (lambda a: a)
-    return FrequencyResponse(
+    out = FrequencyResponse(
         omegas=om,
         steady=nan_where_failed(jax.tree_util.tree_map(lambda a: get(np.asarray(a)), res)),
         params={k: np.asarray(pvals[:, i]) for i, k in enumerate(names)},
         direction=direction, dof_names=tuple(system.output_names),
         signals=signals_of(system),
     )
+    failed = out.failures()
+    if failed:
+        warnings.warn(f"frequency_response: {len(failed)} of {np.asarray(out.status).size} "
+                      f"points failed (their values are NaN); the first, point {failed[0][0]}: "
+                      f"{failed[0][1]}; all of them: result.failures()", RuntimeWarning,
+                      stacklevel=2)
+    return out
 
 
 def _grid_solver(system, names, pvals, amplitude, om, solver, rtol):

@@ -268,6 +268,41 @@ def test_continuation_passes_grazing_and_locates_it():
         assert sum(k == "impact" for _, k in events) == 1
 
 
+def test_continuation_locates_the_grazing_where_a_fifth_impact_is_born():
+    # the hard scene with e matched to its Kelvin-Voigt contact: from 20 rad/s, unstable
+    # orbits with four impacts a period until one flight between them grazes a wall
+    e = aj.restitution_of(aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True),
+                          SCENE["m"], SCENE["M"])
+    with pytest.warns(RuntimeWarning, match="grazes a rigid wall"):
+        br = aj.continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=20.0), "omega",
+                             bounds=(20.0, 26.0))
+    assert br.termination == "grazing" and not br.reached
+    (graze,) = br.of_kind("grazing")
+    assert graze.located and 25.0 < graze.value < 25.4
+    assert np.all(np.asarray(br.steady.impacts)[: graze.index + 1] == 4.0)
+    # the event-exact reference at the located value: periodic, four impacts, and the
+    # highest apex of the relative motion between them touches the wall
+    W = float(graze.value)
+    T = 2 * np.pi / W
+    ts = np.linspace(0.0, T, 40_001)
+    y, events = reference(W, e).run(np.asarray(graze.state), 0.0, T, ts)
+    scale = np.array([1.0, W, 1.0, W]) * SCENE["gap"]
+    assert np.max(np.abs(y[-1] - y[0]) / scale) < 1e-8
+    assert sum(k == "impact" for _, k in events) == 4
+    u = np.abs(y[:, 2] - y[:, 0])
+    w = y[:, 3] - y[:, 1]
+    k = 1 + np.flatnonzero((u[1:-1] >= u[:-2]) & (u[1:-1] >= u[2:])
+                           & (np.abs(w[1:-1]) < 1e-3 * W * SCENE["gap"]))   # smooth apexes
+    d = 0.5 * (u[k - 1] - u[k + 1]) / (u[k - 1] - 2 * u[k] + u[k + 1])
+    apex = u[k] - 0.25 * (u[k - 1] - u[k + 1]) * d
+    assert abs(np.max(apex) / SCENE["gap"] - 1) < 1e-7
+    # a point just before it: every flight clear of the walls
+    i = graze.index
+    y, _ = reference(float(br.values[i]), e).run(np.asarray(br.states[i]), 0.0,
+                                                 2 * np.pi / float(br.values[i]), ts)
+    assert np.max(np.abs(y[:, 2] - y[:, 0])) <= SCENE["gap"] * (1 + 1e-12)
+
+
 @pytest.mark.slow
 def test_sweep_continuation_and_attractor_map_agree_on_an_impacting_orbit():
     # one stable orbit (37.5 rad/s, four impacts a period) seen by every entry point

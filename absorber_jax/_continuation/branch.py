@@ -60,9 +60,9 @@ class Branch(SteadyResults, eqx.Module):
     went where it was asked to, ``reached`` is True; ``"max_points"``, ``"step_collapse"``,
     ``"grazing"``: a grazing it located but could not continue through, or
     ``"start_failed"``: it did not, and ``ending()`` says why and what to try);
-    corrector iterations per point are ``iterations``.  The measured fields are NaN at failed points; ``signals``: the
-    names and SI units of what they measure, as the CSV headers, plot labels and
-    ``to_xarray`` attributes give them."""
+    corrector iterations per point are ``iterations``.  The measured fields are NaN at
+    failed points; ``signals``: the names and SI units of what they measure, as the CSV
+    headers, plot labels and ``to_xarray`` attributes give them."""
 
     parameter: str = eqx.field(static=True)
     values: np.ndarray

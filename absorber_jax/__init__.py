@@ -23,7 +23,7 @@ from ._core.cache import setup_on_import as _setup_cache  # noqa: E402
 
 _setup_cache()  # the persistent compilation cache (absorber_jax._core.cache)
 
-from . import objectives, presets  # noqa: E402
+from . import objectives, presets, questions  # noqa: E402
 from ._continuation.branch import Bifurcation, Branch  # noqa: E402
 from ._continuation.continuation import band_continuation, continuation  # noqa: E402
 from ._continuation.method import PseudoArclength  # noqa: E402
@@ -60,6 +60,16 @@ from ._periodic.marching import Marching  # noqa: E402
 from ._periodic.shooting import Shooting  # noqa: E402
 from ._periodic.steady import SteadyState, solve_point, steady_state  # noqa: E402
 from ._periodic.sweep import FrequencyResponse, frequency_response  # noqa: E402
+from ._study.designs import (  # noqa: E402
+    AbstractDesigns,
+    Designs,
+    Grid,
+    LatinHypercube,
+    MonteCarlo,
+)
+from ._study.distributions import AbstractDistribution, Normal, Uniform  # noqa: E402
+from ._study.result import StudyResult  # noqa: E402
+from ._study.study import study  # noqa: E402
 from ._systems.absorbers import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
 from ._systems.base import AbstractSystem  # noqa: E402
 from ._systems.elements import (  # noqa: E402
@@ -116,4 +126,6 @@ __all__ = [
     "use_cpu_cores",
     "AbstractPeriodicForcing", "MultiHarmonic", "PeriodicForcing", "BaseExcitation",
     "AbstractAbsorber", "AbstractCompliantLaw", "Restitution", "restitution_of",
+    "study", "StudyResult", "questions", "AbstractDesigns", "Grid", "Designs", "MonteCarlo",
+    "LatinHypercube", "AbstractDistribution", "Uniform", "Normal",
 ]

@@ -5,17 +5,18 @@ from __future__ import annotations
 
 class PointProgress:
     """A tqdm bar counting points [pt] of ``total``, labelled ``desc (compiling)`` until the
-    first points are done (the first compiled call pays the tracing and the compilation, or
+    first points are done (``initial``: those done before, a resumed study's; the first
+    compiled call pays the tracing and the compilation, or
     reads them back from the persistent cache), then ``desc``.  A context manager; disabled
     (and free) when ``enabled`` is false."""
 
-    def __init__(self, total: int, desc: str, enabled: bool):
+    def __init__(self, total: int, desc: str, enabled: bool, initial: int = 0):
         from tqdm.auto import tqdm
 
         self.desc = desc
         self.started = False
-        self.bar = tqdm(total=int(total), desc=f"{desc} (compiling)", unit="pt",
-                        disable=not enabled)
+        self.bar = tqdm(total=int(total), initial=int(initial), desc=f"{desc} (compiling)",
+                        unit="pt", disable=not enabled)
 
     def update(self, points: int) -> None:
         """``points`` more are done."""

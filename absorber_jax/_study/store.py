@@ -94,21 +94,24 @@ class Store:
 
     def done(self) -> np.ndarray:
         """Per chunk: whether it is complete."""
-        xr = _xr()
-        with xr.open_zarr(self.path, consolidated=False) as ds:
-            return np.asarray(ds["chunk_done"].values, dtype=bool)
+        return np.asarray(self._group()["chunk_done"][:], dtype=bool)
 
     def write(self, c: int, start: int, values: dict, dims: dict) -> None:
         """Chunk ``c``'s answer ``values`` (``{name: (p, ...)}``) into designs
-        ``start, start + p``, then its flag."""
-        xr = _xr()
+        ``start, start + p``, then its flag (zarr arrays written in place: the store's
+        layout is fixed when it is created)."""
+        group = self._group()
         p = int(next(iter(values.values())).shape[0])
-        part = xr.Dataset({k: (("design",) + dims[k], v) for k, v in values.items()})
-        part.to_zarr(self.path, region={"design": slice(start, start + p)}, mode="r+",
-                     consolidated=False)
-        flag = xr.Dataset({"chunk_done": (("chunk",), np.ones(1, bool))})
-        flag.to_zarr(self.path, region={"chunk": slice(c, c + 1)}, mode="r+",
-                     consolidated=False)
+        for k, v in values.items():
+            group[k][start:start + p] = np.asarray(v, dtype=group[k].dtype)
+        group["chunk_done"][c:c + 1] = True
+
+    def _group(self):
+        if getattr(self, "_open", None) is None:
+            import zarr
+
+            self._open = zarr.open_group(self.path, mode="r+")
+        return self._open
 
     def load(self):
         """The whole store as an in-memory dataset."""

@@ -6,11 +6,10 @@ Scene: ``FrictionAbsorber(m1=1, k1=1e4, c1=2, m2=0.2, k2=1.8e3, c2, N, Coulomb(m
 100 normal forces (0.01–200 N, geometric) × 100 absorber dampings (0–2 N s/m) = 10,000
 designs × 64 frequencies, in chunks of 4 designs (256 solves each, one compiled program).
 
-On a 2-core machine the whole study takes hours; the benchmark runs ``--designs`` of its
-designs, spread evenly through the grid (a whole number of chunks), in each configuration, each after a warm-up that pays
-the compilation, and reports solves per second, the extrapolated time of the whole study,
-and the time per chunk against the plain sweep (``frequency_response`` with the same
-designs as ``params``, chunk by chunk):
+Every configuration runs ``--designs`` of its designs, spread evenly through the grid (a
+whole number of chunks), after a warm-up that pays the compilation, and reports solves per
+second, the extrapolated time of the whole study, and the time per chunk against the plain
+sweep (``frequency_response`` with the same designs as ``params``, chunk by chunk):
 
 - **sweep**: ``frequency_response`` chunk by chunk, in this process (the reference);
 - **local**: ``aj.study`` with a zarr store, in this process;
@@ -18,9 +17,12 @@ designs as ``params``, chunk by chunk):
   (one thread each); the workers' compilation is read from the persistent compilation
   cache the local run filled, and reported separately (their first chunk).
 
-In-process runs use every core as a JAX device (``aj.use_cpu_cores``).
+In-process runs use every core as a JAX device (``aj.use_cpu_cores``).  ``--full STORE``
+then runs the whole study locally into the zarr store ``STORE`` (run again to resume it)
+and reports its rate.
 
-    python scripts/benchmark_study.py [--designs 32] [--workers 1,2] [--out FILE]
+    python scripts/benchmark_study.py [--designs 32] [--workers 1,2] [--full STORE]
+                                      [--out FILE]
 
 Prints each result as it comes; ``--out`` writes them to FILE
 (docs/benchmark_study.txt holds the last run).
@@ -96,6 +98,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--designs", type=int, default=32)
     ap.add_argument("--workers", default="1,2")
+    ap.add_argument("--full", default=None, metavar="STORE")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
     n = max(CHUNK, a.designs // CHUNK * CHUNK)
@@ -130,6 +133,22 @@ def main():
         report(f"[dask-{w}] {t_dask:.1f} s, {r:.1f} solves/s ({res.failures()} failed), "
                f"{r / r_local:.2f}x local; workers' first chunks {t_warm:.1f} s (start-up, "
                f"compilation from the cache); whole study {total / r / 3600:.1f} h")
+    if a.full:
+        done = 0
+        if os.path.exists(a.full):
+            import zarr
+
+            done = int(zarr.open_group(a.full, mode="r")["chunk_done"][:].sum())
+        t0 = time.perf_counter()
+        res = aj.study(system(), full_grid(), question(), store=a.full, chunk=CHUNK,
+                       progress=True)
+        t_full = time.perf_counter() - t0
+        s = res.summary()
+        report(f"[full] 10,000 designs x {OMEGAS.size} frequencies into {a.full}: "
+               f"{len(res.computed)} chunks computed in {t_full:.0f} s "
+               f"({res.rate:.1f} solves/s), {done} read back; {s['failed_points']} failed "
+               f"points; band peak {s.get('peak_min', float('nan')):.4g}-"
+               f"{s.get('peak_max', float('nan')):.4g} m")
     if a.out:
         with open(a.out, "w") as f:
             f.write("\n".join(LINES) + "\n")

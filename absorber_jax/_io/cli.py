@@ -522,6 +522,62 @@ def cmd_continue(args):
           f"({summary['time_s']:.1f} s; SI units)")
 
 
+def cmd_study(args):
+    """A design study described in a scene file's ``[study]``: the zarr store (resumed
+    when it exists), summary.json, designs.csv (one row per design, SI units) and
+    study.png (the peak over the design space, or its distribution)."""
+    import os
+
+    import numpy as np
+
+    from .._study.study import study
+
+    system, settings = load_scene(args.file)
+    spec = settings.study
+    if spec is None:
+        raise ValueError(f"{args.file} has no [study] table (see absorber-jax study --help)")
+    os.makedirs(args.out, exist_ok=True)
+    store = args.store or spec.store or os.path.join(args.out, "study.zarr")
+    client, cluster = None, None
+    if args.scheduler or args.workers:
+        from distributed import Client, LocalCluster
+
+        if args.scheduler:
+            client = Client(args.scheduler)
+        else:
+            cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+            client = Client(cluster)
+    try:
+        res = study(system, spec.designs, spec.question, store=store,
+                    chunk=args.chunk or spec.chunk, client=client,
+                    progress=not args.quiet)
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    d = res.data
+    summary = dict(res.summary(), title=settings.title, scene=args.file)
+    with open(os.path.join(args.out, "summary.json"), "w") as f:
+        json.dump(summary, f, indent=2, default=float)
+    per_design = [k for k, v in d.data_vars.items()
+                  if set(v.dims) <= set(d.attrs["design_dims"].split(","))]
+    if per_design:
+        frame = d[per_design].to_dataframe().reset_index()
+        frame = frame.rename(columns={c: with_unit(c, d[c].attrs.get("units", ""))
+                                      for c in frame.columns if c in d})
+        frame.to_csv(os.path.join(args.out, "designs.csv"), index=False)
+    if "peak" in d and np.isfinite(np.asarray(d["peak"], dtype=float)).any():
+        import matplotlib.pyplot as plt
+
+        plt.close(res.plot(os.path.join(args.out, "study.png")))
+    print(f"{summary['designs']} designs: {summary['chunks_computed']} chunks computed, "
+          f"{summary['chunks_reused']} read from {store}; {summary['failed_points']} failed "
+          f"points; summary.json, designs.csv and study.png written to {args.out}")
+    return 0
+
+
 def _load_system(args):
     """(system, F0, title, sets) from --file (a scene file) or --scene (a preset), with the
     --set replacements and --amplitude applied."""
@@ -828,6 +884,31 @@ def build_parser():
     at.add_argument("--out", default="attractors", help="output folder")
     at.add_argument("--progress", action="store_true", help="show a progress bar")
     at.set_defaults(func=cmd_attractors)
+    sd = _command(sub, "study", "a design study from a scene file: a resumable zarr store, "
+                  "CSV, JSON and a PNG",
+                  "Ask the question of a scene file's [study] table (frequency_response, "
+                  "exact_peak or robust_peak) of every design of its design set (grid, "
+                  "designs, monte_carlo or latin_hypercube), chunk by chunk into a zarr store "
+                  "(run again to resume: only missing chunks are computed; a store made for "
+                  "another study is refused), locally or on Dask workers.  Writes "
+                  "summary.json, designs.csv (one row per design, SI units) and study.png "
+                  "(the peak over the design space, or its distribution) to --out.")
+    sd.add_argument("--file", required=True, help="the scene file (.toml or .json) with a "
+                    "[study] table (required)")
+    sd.add_argument("--store", default=None,
+                    help="the zarr store (default: the scene's study.store, else "
+                         "<out>/study.zarr)")
+    sd.add_argument("--chunk", type=int, default=None,
+                    help="designs per chunk (default: the scene's, else about 256 solves)")
+    sd.add_argument("--workers", type=int, default=0,
+                    help="run on a local Dask cluster of this many worker processes "
+                         "(0: in this process)")
+    sd.add_argument("--scheduler", default=None,
+                    help="address of a running Dask scheduler (tcp://host:8786) to run on "
+                         "instead")
+    sd.add_argument("--out", default="study", help="output folder")
+    sd.add_argument("--quiet", action="store_true", help="no progress bar")
+    sd.set_defaults(func=cmd_study)
     wp = _command(sub, "work-precision", "error against run time for every law and solver",
                   "Run scripts/work_precision.py (needs the repository checkout): the error "
                   "of every contact and friction law under every solver against run time.")

@@ -48,6 +48,21 @@ method = "shooting"               # shooting | marching
 [simulate]                        # optional: settings of ``absorber-jax scene --simulate``
 omega = 45.0                      # [rad/s], default the frequency of the sweep's peak
 periods = 30                      # forcing periods simulated from rest
+
+[study]                           # optional: ``absorber-jax study`` (aj.study)
+question = "exact_peak"           # frequency_response (over [sweep] omegas) | exact_peak |
+band = [10.0, 80.0]               #   robust_peak (over band [rad/s])
+store = "roof_tmd_study.zarr"     # optional (default <out>/study.zarr)
+chunk = 8                         # optional: designs per chunk
+
+[study.monte_carlo]               # exactly one of grid | designs | monte_carlo | latin_hypercube
+samples = 200
+seed = 1                          # optional (default 0)
+"roof_tmd.k" = {uniform = [0.95, 1.05], relative = true}   # or normal = [mean, std]
+"roof_tmd.c" = {normal = [1.0, 0.02], relative = true}
+
+# [study.grid] / [study.designs]: "name" = [values ...] per parameter (a grid: every
+# combination; designs: the i-th values together, all lists the same length)
 ```
 
 **structure** (``type`` and its keys; damping, for all but ``modes``: at most one of
@@ -115,6 +130,19 @@ FRICTION_LAWS = ("coulomb", "stribeck", "dahl", "lugre")
 DIRECTIONS = ("parallel", "up", "down", "both")
 METHODS = ("shooting", "marching")
 DEFAULT_PERIODS = 30
+STUDY_QUESTIONS = ("frequency_response", "exact_peak", "robust_peak")
+DESIGN_KINDS = ("grid", "designs", "monte_carlo", "latin_hypercube")
+
+
+@dataclasses.dataclass(frozen=True)
+class StudySpec:
+    """A scene file's ``[study]``: the design set, the question, the store and the chunk
+    size (``None``: the defaults of ``aj.study``)."""
+
+    designs: object
+    question: object
+    store: str | None = None
+    chunk: int | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,7 +150,8 @@ class SceneSettings:
     """What a scene file says besides the system: the load amplitude ``F0`` [N], the sweep
     (``omegas`` [rad/s] or ``None``, ``direction``, ``method``), the simulation settings
     (``simulate_omega`` [rad/s] or ``None`` = the sweep's peak, ``simulate_periods``),
-    ``title``, ``description`` and the file read (``source``)."""
+    ``title``, ``description``, the file read (``source``) and its ``study``
+    (a ``StudySpec`` or ``None``)."""
 
     amplitude: float
     omegas: np.ndarray | None = None
@@ -133,11 +162,19 @@ class SceneSettings:
     title: str = ""
     description: str = ""
     source: str = ""
+    study: StudySpec | None = None
 
     def __eq__(self, other):
         if not isinstance(other, SceneSettings):
             return NotImplemented
-        a, b = dataclasses.asdict(self), dataclasses.asdict(other)
+        sa, sb = self.study, other.study
+        if (sa is None) != (sb is None) or (sa is not None and (
+                sa.designs.describe(), sa.question.describe(), sa.store, sa.chunk) != (
+                sb.designs.describe(), sb.question.describe(), sb.store, sb.chunk)):
+            return False
+        a = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        b = {f.name: getattr(other, f.name) for f in dataclasses.fields(other)}
+        a.pop("study"), b.pop("study")
         oa, ob = a.pop("omegas"), b.pop("omegas")
         a.pop("source"), b.pop("source")
         same_grid = (oa is None and ob is None) or (
@@ -606,6 +643,87 @@ def _simulate(d, path):
                                           required=False))
 
 
+def _parameter(system, name, where):
+    import absorber_jax as aj
+
+    try:
+        aj.get_param(system, name)
+    except ValueError:
+        raise ValueError(f"{where}: unknown parameter {name!r}; known: "
+                         f"{aj.parameter_names(system)}") from None
+
+
+def _distribution(spec, where):
+    import absorber_jax as aj
+
+    spec = _table(spec, where)
+    _keys(spec, where, (), ("uniform", "normal", "relative"))
+    kinds = [k for k in ("uniform", "normal") if k in spec]
+    if len(kinds) != 1:
+        raise ValueError(f"{where} needs exactly one of uniform = [low, high] | normal = "
+                         f"[mean, std], got {_show(spec)}")
+    v = _vector(spec, kinds[0], where)
+    if len(v) != 2:
+        raise ValueError(f"{where}.{kinds[0]} must be two numbers, got "
+                         f"{_show(spec[kinds[0]])}")
+    a, b = v
+    relative = _boolean(spec, "relative", where, default=False)
+    cls = aj.Uniform if kinds[0] == "uniform" else aj.Normal
+    return cls(a, b, relative=relative)
+
+
+def _study(d, path, system, amplitude, omegas):
+    import absorber_jax as aj
+
+    d = _table(d, path)
+    _keys(d, path, ("question",), DESIGN_KINDS + ("band", "store", "chunk"))
+    kinds = [k for k in DESIGN_KINDS if k in d]
+    if len(kinds) != 1:
+        raise ValueError(f"{path} needs exactly one of {' | '.join(DESIGN_KINDS)}, got "
+                         f"{kinds or 'none'}")
+    kind = kinds[0]
+    kp = f"{path}.{kind}"
+    t = _table(d[kind], kp)
+    if kind in ("grid", "designs"):
+        if not t:
+            raise ValueError(f"{kp} needs at least one parameter")
+        cols = {}
+        for name in t:
+            _parameter(system, name, f"{kp}.{name}")
+            cols[name] = _vector(t, name, kp, allow_scalar=True)
+        designs = (aj.Grid if kind == "grid" else aj.Designs)(cols)
+    else:
+        samples = _integer(t, "samples", kp, lo=1)
+        seed = _integer(t, "seed", kp, lo=0, default=0, required=False)
+        dists = {}
+        for name, spec in t.items():
+            if name in ("samples", "seed"):
+                continue
+            _parameter(system, name, f"{kp}.{name}")
+            dists[name] = _distribution(spec, f"{kp}.{name}")
+        if not dists:
+            raise ValueError(f"{kp} needs at least one parameter")
+        designs = (aj.MonteCarlo if kind == "monte_carlo" else aj.LatinHypercube)(
+            samples, dists, seed=seed)
+    question = _string(d, "question", path, choices=STUDY_QUESTIONS)
+    if question == "frequency_response":
+        if omegas is None:
+            raise ValueError(f"{path}.question = 'frequency_response' needs the frequencies "
+                             f"of [sweep] omegas")
+        q = aj.questions.FrequencyResponse(omegas, amplitude=amplitude)
+    else:
+        band = _vector(d, "band", path, lo=0.0, lo_open=True)
+        if len(band) != 2 or not band[0] < band[1]:
+            raise ValueError(f"{path}.band must be [lo, hi] with 0 < lo < hi [rad/s], got "
+                             f"{_show(d['band'])}")
+        cls = (aj.questions.ExactPeak if question == "exact_peak"
+               else aj.questions.RobustPeak)
+        q = cls(tuple(band), amplitude=amplitude)
+    return StudySpec(designs=designs, question=q,
+                     store=_string(d, "store", path, default=None, required=False),
+                     chunk=_integer(d, "chunk", path, lo=1, default=None, required=False))
+
+
 # --------------------------------------------------------------------------- the scene
 
 
@@ -617,7 +735,7 @@ def scene_from_dict(data, *, source=""):
     p = SCENE
     d = _table(data, p)
     _keys(d, p, ("structure", "load"),
-          ("title", "description", "elements", "observe", "sweep", "simulate"))
+          ("title", "description", "elements", "observe", "sweep", "simulate", "study"))
     title = _string(d, "title", p, default="", required=False)
     description = d.get("description", "")
     if not isinstance(description, str):
@@ -660,6 +778,9 @@ def scene_from_dict(data, *, source=""):
         extra.update(_sweep(d["sweep"], f"{p}.sweep"))
     if "simulate" in d:
         extra.update(_simulate(d["simulate"], f"{p}.simulate"))
+    if "study" in d:
+        extra["study"] = _study(d["study"], f"{p}.study", system, amplitude,
+                                extra.get("omegas"))
     settings = SceneSettings(amplitude=amplitude, title=title, description=description,
                              source=source, **extra)
     return system, settings

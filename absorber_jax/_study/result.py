@@ -86,7 +86,15 @@ class StudyResult(eqx.Module):
             a1.hist(x, bins=max(10, int(np.sqrt(x.size))), color="tab:blue", alpha=0.8)
             a1.set_xlabel(label)
             a1.set_ylabel("designs")
-            a2.plot(np.sort(x), (np.arange(x.size) + 1) / max(x.size, 1), color="tab:blue")
+            a2.step(np.sort(x), (np.arange(x.size) + 1) / max(x.size, 1), where="post",
+                    color="tab:blue")
+            if x.size:
+                for q, style in ((0.5, "--"), (0.95, ":")):
+                    xq = float(np.quantile(x, q))
+                    for ax in (a1, a2):
+                        ax.axvline(xq, color="k", ls=style, lw=1,
+                                   label=f"{int(q * 100)} % quantile {xq:.4g}")
+                a1.legend(fontsize=8)
             a2.set_xlabel(label)
             a2.set_ylabel("probability of not exceeding")
             a2.grid(True, alpha=0.3)

@@ -96,10 +96,12 @@ def continue_hard():
         br, t_first = timed(run)
         br, t_again = timed(run)
         v = br.values
-        kinds = {k: len(br.of_kind(k)) for k in ("fold", "period_doubling", "neimark_sacker")}
+        kinds = {k: len(br.of_kind(k))
+                 for k in ("fold", "period_doubling", "neimark_sacker", "grazing")}
         report(f"[hard] {name}: continuation from 20 up: {t_first:.1f} s with compilation, "
                f"{t_again:.1f} s compiled; {len(v)} points covering {v.min():.3f}-{v.max():.3f}"
-               f" rad/s, ended {br.termination}; bifurcations {kinds}")
+               f" rad/s, ended {br.termination}; bifurcations {kinds}"
+               + "".join(f"; grazing at {b.value:.7g} rad/s" for b in br.of_kind("grazing")))
 
 
 def main():

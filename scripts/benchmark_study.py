@@ -14,12 +14,13 @@ sweep (``frequency_response`` with the same designs as ``params``, chunk by chun
 - **sweep**: ``frequency_response`` chunk by chunk, in this process (the reference);
 - **local**: ``aj.study`` with a zarr store, in this process;
 - **dask-1**, **dask-2**: ``aj.study`` on a ``LocalCluster`` of 1 and 2 worker processes
-  (one thread each); the workers' compilation is read from the persistent compilation
-  cache the local run filled, and reported separately (their first chunk).
+  (one thread each), each worker first warmed by one chunk of its own (its compilation,
+  read from the persistent compilation cache the local run filled, reported separately).
 
-In-process runs use every core as a JAX device (``aj.use_cpu_cores``).  ``--full STORE``
-then runs the whole study locally into the zarr store ``STORE`` (run again to resume it)
-and reports its rate.
+In-process runs use every core as a JAX device (``aj.use_cpu_cores``); on a machine with a
+GPU JAX runs them there instead, and the same lines report the study's throughput on it.
+``--full STORE`` then runs the whole study locally into the zarr store ``STORE`` (run
+again to resume it) and reports its rate.
 
     python scripts/benchmark_study.py [--designs 32] [--workers 1,2] [--full STORE]
                                       [--out FILE]
@@ -94,6 +95,13 @@ def run_study(designs, client=None):
         shutil.rmtree(os.path.dirname(path), ignore_errors=True)
 
 
+def warm_worker(designs):
+    """One chunk computed in this process (on a Dask worker: its compilation paid)."""
+    table = designs.table(system())
+    question().compute(system(), table)
+    return True
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--designs", type=int, default=32)
@@ -106,10 +114,11 @@ def main():
     points = n * OMEGAS.size
     import jax
 
-    report(f"study benchmark on {os.cpu_count()} cores, jax {jax.__version__}: friction "
+    aj.use_cpu_cores()          # before JAX starts: every core a CPU device (unused on a GPU)
+    report(f"study benchmark on {os.cpu_count()} cores, jax {jax.__version__} "
+           f"({jax.default_backend()}: {jax.devices()[0].device_kind}): friction "
            f"absorber (exact Coulomb), {n} of 10,000 designs x {OMEGAS.size} frequencies "
            f"({points} solves, chunks of {CHUNK} designs)")
-    aj.use_cpu_cores()
     warm = subset(CHUNK)
     t_first, _ = run_sweep(warm)
     report(f"[warm-up] first chunk with compilation: {t_first:.1f} s")
@@ -127,12 +136,15 @@ def main():
     for w in (int(x) for x in a.workers.split(",") if x):
         with LocalCluster(n_workers=w, threads_per_worker=1, processes=True,
                           dashboard_address=None) as lc, Client(lc) as client:
-            t_warm, _ = run_study(subset(CHUNK * w), client)
+            t0 = time.perf_counter()
+            client.run(warm_worker, subset(CHUNK))      # every worker compiles, at once
+            t_warm = time.perf_counter() - t0
             t_dask, res = run_study(subset(n), client)
         r = points / t_dask
         report(f"[dask-{w}] {t_dask:.1f} s, {r:.1f} solves/s ({res.failures()} failed), "
-               f"{r / r_local:.2f}x local; workers' first chunks {t_warm:.1f} s (start-up, "
-               f"compilation from the cache); whole study {total / r / 3600:.1f} h")
+               f"{r / r_local:.2f}x local; the workers' warm-up (a chunk each, at once: tracing, "
+               f"compilation from the cache) {t_warm:.1f} s; whole study "
+               f"{total / r / 3600:.1f} h")
     if a.full:
         done = 0
         if os.path.exists(a.full):

@@ -125,7 +125,7 @@ def _forces(tr, system):
     if f.ndim == 1:
         return [(with_unit("coupling force", "N"), f)]
     f = f.reshape(f.shape[0], -1)
-    names = list(getattr(system, "element_names", ()))
+    names = list(system.force_names)
     if len(names) != f.shape[1]:
         names = [str(j) for j in range(f.shape[1])]
     return [(with_unit(f"force {nm}", "N"), f[:, j]) for j, nm in enumerate(names)]

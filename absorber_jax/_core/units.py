@@ -25,8 +25,6 @@ from __future__ import annotations
 import dataclasses
 import re
 
-import numpy as np
-
 # the unit of the signal the field measures (m, or rad for a rotation)
 SIGNAL = "<signal>"
 
@@ -139,9 +137,31 @@ def dof_unit(name: str) -> str:
     return "rad" if re.fullmatch(r"th\d+", str(name)) else "m"
 
 
+def field_unit(field) -> str:
+    """SI unit of a design parameter by its field name (``m``, ``k``, ``gap``, ``N``,
+    ``mu``, ``sigma0`` ...); ``""`` when unknown.  Laws and elements refine it through
+    their ``field_unit`` methods (a Hertzian stiffness, a friction law's ``eps``)."""
+    return _PARAMETER_UNITS.get(field, "")
+
+
+def common_unit(units):
+    """The one unit of ``units``, or ``"a or b"`` where they differ (``"m"`` for none)."""
+    return _common(units)
+
+
 def _common(units):
     units = sorted(set(units))
     return units[0] if len(units) == 1 else " or ".join(units) if units else "m"
+
+
+def weighted_name(names, weights):
+    """``"x3 - x2"``, ``"0.5 x1 + 0.5 x2"``: a readable weighted sum."""
+    return _weighted(names, weights)
+
+
+def state_unit(name, dof_units, identity_map):
+    """Unit of a public state component by its name (see ``_state_unit``)."""
+    return _state_unit(name, dof_units, identity_map)
 
 
 def _weighted(names, weights):
@@ -175,6 +195,8 @@ def _state_unit(name, dof_units, identity_map):
 
 
 def _parameter_unit(system, name):
+    """The unit of parameter ``name``: its field's unit as the module that holds it gives
+    it (``field_unit``: systems, elements and laws each refine the common table)."""
     try:
         path = system.parameter_path(name)
     except Exception:  # noqa: BLE001 - any system: no unit rather than an error
@@ -182,60 +204,32 @@ def _parameter_unit(system, name):
     parts = path.split(".")
     owner = system
     for part in parts[:-1]:
-        owner = owner[int(part)] if part.isdigit() else getattr(owner, part, None)
-    field = parts[-1]
-    law = type(owner).__name__
-    if hasattr(owner, "exponent") and field in ("stiffness", "damping", "eps"):
-        # a contact law (see absorber_jax._laws.contact)
-        if field == "eps":
-            return "m"
-        if field == "stiffness":
-            return "N/m" if float(owner.exponent) == 1.0 else f"N/m^{float(owner.exponent):g}"
-        return "N s/m^2.5" if law == "HuntCrossley" else "N s/m"
-    if field == "eps":
-        return "m/s"   # a friction law's smoothing velocity
-    if field == "stiffness":
-        return "N/m"
-    if field == "damping":
-        return "N s/m"
-    return _PARAMETER_UNITS.get(field, "")
+        owner = owner[int(part)] if part.isdigit() else getattr(owner, part)
+    return owner.field_unit(parts[-1])
+
+
+def generic_signals(system) -> Signals:
+    """The ``Signals`` of a system whose outputs are its degrees of freedom, the first
+    observed and the second the absorber (the two-mass absorbers, and the default of
+    ``AbstractSystem.signals``)."""
+    dof_names = tuple(system.output_names)
+    dofs = tuple((n, dof_unit(n)) for n in dof_names)
+    observable, obs_unit = (dof_names[0], dofs[0][1]) if dof_names else ("observable", "m")
+    stroke = f"{dof_names[1]} - {dof_names[0]}" if len(dof_names) == 2 else "absorber stroke"
+    states = tuple((n, _state_unit(n, [], False)) for n in system.state_names)
+    return Signals(observable=observable, observable_unit=obs_unit, stroke=stroke, dofs=dofs,
+                   states=states, parameters=parameter_units(system))
+
+
+def parameter_units(system) -> tuple:
+    """``(name, unit)`` of every named parameter of ``system``."""
+    return tuple((n, _parameter_unit(system, n)) for n in system.parameter_names())
 
 
 def signals_of(system) -> Signals:
-    """The ``Signals`` of a system (read off its public members: ``output_names``,
-    ``state_names``, ``parameter_names``; a structure's ``observe`` weights and elements)."""
-    dof_names = tuple(system.output_names)
-    structure = getattr(system, "structure", None)
-    if structure is not None and hasattr(system, "observe"):
-        sdofs = tuple(structure.dof_names)
-        units = [dof_unit(n) for n in sdofs]
-        # an absorber's output takes its host's unit
-        hosts = {nm: e.dof for nm, e in zip(system.element_names, system.elements)
-                 if getattr(e, "num_strokes", 0)}
-        dofs = tuple((n, dof_unit(hosts.get(n, n))) for n in dof_names)
-        w = np.asarray(system.observe, dtype=float)
-        nz = np.flatnonzero(w)
-        observable = _weighted([sdofs[i] for i in nz], w[nz]) if nz.size else "0"
-        obs_unit = _common([units[i] for i in nz])
-        strokes = [f"{nm} - {host}" for nm, host in hosts.items()]
-        stroke = (strokes[0] if len(strokes) == 1
-                  else "largest absorber stroke" if strokes else "absorber stroke (none)")
-        dm = np.asarray(structure.dof_map)
-        identity = dm.shape[0] == dm.shape[1] and np.array_equal(dm, np.eye(dm.shape[0]))
-        states = tuple((n, _state_unit(n, units, identity)) for n in system.state_names)
-    else:
-        dofs = tuple((n, dof_unit(n)) for n in dof_names)
-        observable, obs_unit = (dof_names[0], dofs[0][1]) if dof_names else ("observable", "m")
-        stroke = (f"{dof_names[1]} - {dof_names[0]}" if len(dof_names) == 2
-                  else "absorber stroke")
-        states = tuple((n, _state_unit(n, [], False)) for n in system.state_names)
-    try:
-        pnames = list(system.parameter_names())
-    except Exception:  # noqa: BLE001
-        pnames = []
-    params = tuple((n, _parameter_unit(system, n)) for n in pnames)
-    return Signals(observable=observable, observable_unit=obs_unit, stroke=stroke, dofs=dofs,
-                   states=states, parameters=params)
+    """The ``Signals`` of a system: ``system.signals()`` (each system says what its results
+    measure)."""
+    return system.signals()
 
 
 def unit_of(field, signals: Signals | None = None, dof=None) -> str:

@@ -17,6 +17,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
+from .._core import units
 from .._core.checks import as_float, check_scalar, nonnegative, positive
 from .smooth import smooth_clip_positive, smooth_gate, smooth_relu
 
@@ -35,6 +36,10 @@ class AbstractContactLaw(eqx.Module):
     # True: the rigid law, integrated by events at the walls
     # (absorber_jax._integration.stickslip)
     exact: eqx.AbstractClassVar[bool]
+
+    def field_unit(self, field: str) -> str:
+        """SI unit of the law's parameter field ``field`` (``eps``: a penetration [m])."""
+        return "m" if field == "eps" else units.field_unit(field)
 
     @abc.abstractmethod
     def wall_force(self, x, rate):
@@ -98,6 +103,14 @@ class AbstractCompliantLaw(AbstractContactLaw):
     damping: eqx.AbstractVar[object]
     eps: eqx.AbstractVar[object]
     adhesive: eqx.AbstractVar[bool]
+
+    def field_unit(self, field: str) -> str:
+        """``stiffness`` [N/m^exponent], ``damping`` [N s/m], ``eps`` [m]."""
+        if field == "stiffness":
+            return "N/m" if float(self.exponent) == 1.0 else f"N/m^{float(self.exponent):g}"
+        if field == "damping":
+            return "N s/m"
+        return super().field_unit(field)
 
     @abc.abstractmethod
     def elastic_force(self, delta):
@@ -321,6 +334,10 @@ class HuntCrossley(_AbstractHertzian):
 
     def viscous_force(self, delta, delta_dot):
         return self.damping * delta**1.5 * delta_dot
+
+    def field_unit(self, field: str) -> str:
+        """As the compliant laws, with ``damping`` [N s/m^2.5]."""
+        return "N s/m^2.5" if field == "damping" else super().field_unit(field)
 
 
 CONTACT_LAWS = {"kelvin_voigt": KelvinVoigt, "hertz": Hertz, "hunt_crossley": HuntCrossley}

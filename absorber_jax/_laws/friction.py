@@ -18,6 +18,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
+from .._core import units
 from .._core.checks import as_float, check_scalar, is_traced, nonnegative, positive
 from .smooth import abs_or_smooth, smooth_sign
 
@@ -42,6 +43,11 @@ class AbstractFrictionLaw(eqx.Module):
     def state_rate(self, v, z, normal_force):
         """Time derivative of the internal state (empty for memoryless laws)."""
         return jnp.zeros((0,), dtype=jnp.result_type(v))
+
+    def field_unit(self, field: str) -> str:
+        """SI unit of the law's parameter field ``field`` (``eps``: a sliding velocity
+        [m/s]; ``mu`` 1, ``sigma0`` [N/m] ...)."""
+        return "m/s" if field == "eps" else units.field_unit(field)
 
     def stored_energy(self, z):
         """Elastic energy [J] held in the internal state (zero for memoryless laws)."""

@@ -7,6 +7,8 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 
+from .._core import units
+
 
 class AbstractSystem(eqx.Module):
     """A forced mechanical system: the interface that ``simulate``, the steady-state solvers,
@@ -177,3 +179,22 @@ class AbstractSystem(eqx.Module):
     @abc.abstractmethod
     def parameter_names(self) -> list:
         """The names [`replace_params`][absorber_jax.replace_params], sweeps and ``tune`` accept."""
+
+    def field_unit(self, field: str) -> str:
+        """SI unit of this system's own parameter field ``field`` (``M``, ``k``, ``gap`` ...;
+        fields of its laws and elements are theirs to say)."""
+        return units.field_unit(field)
+
+    @property
+    def force_names(self) -> tuple:
+        """Names of the columns of a trajectory's ``coupling_force`` where it has one per
+        element (a structure's elements); empty where it is one force."""
+        return ()
+
+    # -- what results measure --------------------------------------------------------------
+    def signals(self) -> units.Signals:
+        """The names and SI units of what its results measure (the observable, the absorber
+        stroke, each output, state component and parameter): CSV headers, plot labels and
+        dataset attributes.  Default: the outputs are displacements [m], the first the
+        observable, the second an absorber on it."""
+        return units.generic_signals(self)

@@ -43,6 +43,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
+from .._core import units
 from .._core.checks import as_float, nonnegative, positive
 from .._laws.contact import AbstractContactLaw
 from .._laws.friction import AbstractFrictionLaw
@@ -165,6 +166,11 @@ class AbstractElement(eqx.Module):
     def strokes(self, z):
         """Its absorber's displacement relative to the host (empty if not an absorber)."""
         return _zeros(0, z)
+
+    def field_unit(self, field: str) -> str:
+        """SI unit of its parameter field ``field`` (``m`` [kg], ``k`` [N/m], ``gap`` [m],
+        ``N`` [N] ...; its laws' fields are theirs to say)."""
+        return units.field_unit(field)
 
     def penetrations(self, x, v, z):
         """Signed penetration [m] of each of its contact walls (``> 0``: closed); empty

@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core import units
 from .._core.checks import is_traced
 from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
 from .base import AbstractSystem
@@ -774,6 +775,35 @@ class StructuralSystem(AbstractSystem):
         return jnp.max(jnp.stack(rates)) if rates else jnp.zeros(())
 
     # -- what is measured ------------------------------------------------------------------
+    @property
+    def force_names(self) -> tuple:
+        """The elements' names: a trajectory's coupling force has one column each."""
+        return self.element_names
+
+    def signals(self) -> units.Signals:
+        """The observable as the weighted sum of degrees of freedom it is (``"floor3"``,
+        ``"floor3 - floor2"``) in their unit, each absorber's output in its host's unit,
+        the absorber stroke(s) by name, the state components (``q<i>`` in the degrees of
+        freedom's units where the coordinates are the degrees of freedom) and the
+        parameters."""
+        sdofs = tuple(self.structure.dof_names)
+        dof_units = [units.dof_unit(n) for n in sdofs]
+        hosts = {nm: e.dof for nm, e, _ in self._absorbers()}
+        dofs = tuple((n, units.dof_unit(hosts.get(n, n))) for n in self.output_names)
+        w = np.asarray(self.observe, dtype=float)
+        nz = np.flatnonzero(w)
+        observable = units.weighted_name([sdofs[i] for i in nz], w[nz]) if nz.size else "0"
+        strokes = [f"{nm} - {host}" for nm, host in hosts.items()]
+        stroke = (strokes[0] if len(strokes) == 1
+                  else "largest absorber stroke" if strokes else "absorber stroke (none)")
+        dm = np.asarray(self.structure.dof_map)
+        identity = dm.shape[0] == dm.shape[1] and np.array_equal(dm, np.eye(dm.shape[0]))
+        states = tuple((n, units.state_unit(n, dof_units, identity)) for n in self.state_names)
+        return units.Signals(observable=observable,
+                             observable_unit=units.common_unit([dof_units[i] for i in nz]),
+                             stroke=stroke, dofs=dofs, states=states,
+                             parameters=units.parameter_units(self))
+
     def _absorbers(self):
         return [(nm, e, o) for nm, e, o in zip(self.element_names, self.elements,
                                                self._offsets()[0]) if e.num_strokes]

@@ -12,14 +12,14 @@ second, the extrapolated time of the whole study, and the time per chunk against
 sweep (``frequency_response`` with the same designs as ``params``, chunk by chunk):
 
 - **sweep**: ``frequency_response`` chunk by chunk, in this process (the reference);
-- **local**: ``aj.study`` with a zarr store, in this process;
+- **local**: ``aj.study`` with a store on disk, in this process;
 - **dask-1**, **dask-2**: ``aj.study`` on a ``LocalCluster`` of 1 and 2 worker processes
   (one thread each), each worker first warmed by one chunk of its own (its compilation,
   read from the persistent compilation cache the local run filled, reported separately).
 
 In-process runs use every core as a JAX device (``aj.use_cpu_cores``); on a machine with a
 GPU JAX runs them there instead, and the same lines report the study's throughput on it.
-``--full STORE`` then runs the whole study locally into the zarr store ``STORE`` (run
+``--full STORE`` then runs the whole study locally into the store ``STORE`` (run
 again to resume it) and reports its rate.
 
     python scripts/benchmark_study.py [--designs 32] [--workers 1,2] [--full STORE]
@@ -146,11 +146,6 @@ def main():
                f"compilation from the cache) {t_warm:.1f} s; whole study "
                f"{total / r / 3600:.1f} h")
     if a.full:
-        done = 0
-        if os.path.exists(a.full):
-            import zarr
-
-            done = int(zarr.open_group(a.full, mode="r")["chunk_done"][:].sum())
         t0 = time.perf_counter()
         res = aj.study(system(), full_grid(), question(), store=a.full, chunk=CHUNK,
                        progress=True)
@@ -158,7 +153,7 @@ def main():
         s = res.summary()
         report(f"[full] 10,000 designs x {OMEGAS.size} frequencies into {a.full}: "
                f"{len(res.computed)} chunks computed in {t_full:.0f} s "
-               f"({res.rate:.1f} solves/s), {done} read back; {s['failed_points']} failed "
+               f"({res.rate:.1f} solves/s), {res.reused} read back; {s['failed_points']} failed "
                f"points; band peak {s.get('peak_min', float('nan')):.4g}-"
                f"{s.get('peak_max', float('nan')):.4g} m")
     if a.out:

@@ -523,7 +523,7 @@ def cmd_continue(args):
 
 
 def cmd_study(args):
-    """A design study described in a scene file's ``[study]``: the zarr store (resumed
+    """A design study described in a scene file's ``[study]``: the store (resumed
     when it exists), summary.json, designs.csv (one row per design, SI units) and
     study.png (the peak over the design space, or its distribution)."""
     import os
@@ -884,11 +884,12 @@ def build_parser():
     at.add_argument("--out", default="attractors", help="output folder")
     at.add_argument("--progress", action="store_true", help="show a progress bar")
     at.set_defaults(func=cmd_attractors)
-    sd = _command(sub, "study", "a design study from a scene file: a resumable zarr store, "
+    sd = _command(sub, "study", "a design study from a scene file: a resumable store, "
                   "CSV, JSON and a PNG",
                   "Ask the question of a scene file's [study] table (frequency_response, "
                   "exact_peak or robust_peak) of every design of its design set (grid, "
-                  "designs, monte_carlo or latin_hypercube), chunk by chunk into a zarr store "
+                  "designs, monte_carlo or latin_hypercube), chunk by chunk into a store "
+                  "(Zarr format) "
                   "(run again to resume: only missing chunks are computed; a store made for "
                   "another study is refused), locally or on Dask workers.  Writes "
                   "summary.json, designs.csv (one row per design, SI units) and study.png "
@@ -896,7 +897,7 @@ def build_parser():
     sd.add_argument("--file", required=True, help="the scene file (.toml or .json) with a "
                     "[study] table (required)")
     sd.add_argument("--store", default=None,
-                    help="the zarr store (default: the scene's study.store, else "
+                    help="the store, a directory (default: the scene's study.store, else "
                          "<out>/study.zarr)")
     sd.add_argument("--chunk", type=int, default=None,
                     help="designs per chunk (default: the scene's, else about 256 solves)")

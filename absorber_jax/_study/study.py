@@ -41,11 +41,12 @@ def study(system: AbstractSystem, designs: AbstractDesigns, question: AbstractQu
       (names as ``aj.parameter_names(system)`` lists them).
     - ``question``: ``aj.questions.FrequencyResponse``, ``ExactPeak``, ``RobustPeak``,
       ``Attractors``, or your own ``aj.questions.AbstractQuestion``.
-    - ``store``: a directory path: a zarr store written chunk by chunk as the chunks
-      complete.  Run again on the same store, the study computes only the chunks not yet
-      written (after Ctrl-C, a crash or a lost machine nothing done is lost or computed
-      twice); a store made for another study (system, designs, question or chunk size) is
-      refused with a ``ValueError`` and left untouched.  ``None``: in memory only.
+    - ``store``: a directory path: a store (in the Zarr version 2 format) written chunk by
+      chunk as the chunks complete.  Run again on the same store, the study computes only
+      the chunks not yet written (after Ctrl-C, a crash or a lost machine nothing done is
+      lost or computed twice); a store made for another study (system, designs, question
+      or chunk size) is refused with a ``ValueError`` and left untouched.  ``None``: in
+      memory only.
     - ``chunk``: designs per chunk (default: about 256 solves a chunk).
     - ``client``: a ``distributed.Client``: the chunks are computed on its workers (a
       ``LocalCluster`` on this machine, a ``dask_jobqueue.SLURMCluster`` on a cluster),

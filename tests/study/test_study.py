@@ -3,109 +3,33 @@ against the closed-form peak of a tuned mass damper, bad input."""
 
 from __future__ import annotations
 
-import hashlib
+import json
 import os
 import pathlib
-import threading
-import time
+import subprocess
+import sys
 
 import numpy as np
 import pytest
+from study_scene import (
+    CT,
+    F0,
+    GRID,
+    KT,
+    OMEGAS,
+    QUESTION,
+    Counting,
+    closed_form_peak,
+    log_lines,
+    log_values,
+    receptance,
+    tmd_system,
+    tree_digest,
+)
 
 import absorber_jax as aj
 
 xr = pytest.importorskip("xarray")
-pytest.importorskip("zarr")
-
-# a tuned mass damper (Den Hartog's tuning, mass ratio 0.05) on a lightly damped primary
-M, K, C = 1.0, 1e4, 2.0
-MU = 0.05
-MT = MU * M
-KT = MT * (np.sqrt(K / M) / (1 + MU)) ** 2
-CT = 2 * np.sqrt(3 * MU / (8 * (1 + MU) ** 3)) * np.sqrt(KT * MT)
-F0 = 1.0
-OMEGAS = np.linspace(80.0, 120.0, 8)
-
-
-def tmd_system(kt=KT, ct=CT):
-    st = aj.structure_from_matrices(np.eye(1) * M, np.eye(1) * K, damping=np.eye(1) * C)
-    return aj.StructuralSystem(st, [aj.TunedMassDamper("x1", m=MT, k=kt, c=ct)], load="x1")
-
-
-def receptance(w, kt, ct):
-    """|X1| / F0 of the primary, closed form (the TMD as a dynamic stiffness)."""
-    z = kt + 1j * w * ct
-    return np.abs(1.0 / (K - M * w**2 + 1j * w * C + z * (-MT * w**2) / (z - MT * w**2)))
-
-
-def closed_form_peak(kt, ct, band=(80.0, 120.0)):
-    """The largest |X1| over the band: a fine grid, then the maximum of each local peak by
-    bounded scalar minimisation to 1e-13 rad/s."""
-    from scipy.optimize import minimize_scalar
-
-    w = np.linspace(*band, 4001)
-    a = receptance(w, kt, ct)
-    best = max(a[0], a[-1])
-    for i in np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:])) + 1:
-        r = minimize_scalar(lambda x: -receptance(x, kt, ct), bounds=(w[i - 1], w[i + 1]),
-                            method="bounded", options={"xatol": 1e-13})
-        best = max(best, -r.fun)
-    return F0 * best
-
-
-class Counting(aj.questions.AbstractQuestion):
-    """The frequency response, each chunk computed appended to a log file (one line: the
-    process id and the chunk's first design value), each chunk started likewise to
-    ``log + ".start"``; a stop (a KeyboardInterrupt, as Ctrl-C) once the log has
-    as many lines as the file ``log + ".stop"`` says, while it exists; a pause per chunk."""
-
-    inner: aj.questions.AbstractQuestion
-    log: str
-    pause: float = 0.0
-
-    def coords(self, system):
-        return self.inner.coords(system)
-
-    def variables(self, system):
-        return self.inner.variables(system)
-
-    def points(self, system):
-        return self.inner.points(system)
-
-    def compute(self, system, params):
-        with open(self.log + ".start", "a") as f:
-            f.write(f"{os.getpid()} {next(iter(params.values()))[0]!r}\n")
-        if self.pause:
-            time.sleep(self.pause)
-        out = self.inner.compute(system, params)
-        with open(self.log, "a") as f:
-            f.write(f"{os.getpid()} {next(iter(params.values()))[0]!r}\n")
-        stop = pathlib.Path(self.log + ".stop")
-        if stop.exists() and len(_lines(self.log)) >= int(stop.read_text()):
-            raise KeyboardInterrupt
-        return out
-
-
-def _lines(path):
-    p = pathlib.Path(path)
-    return p.read_text().splitlines() if p.exists() else []
-
-
-def _values(path):
-    return [line.split()[1] for line in _lines(path)]
-
-
-def _tree_digest(path):
-    h = hashlib.sha256()
-    for p in sorted(pathlib.Path(path).rglob("*")):
-        if p.is_file():
-            h.update(str(p.relative_to(path)).encode())
-            h.update(p.read_bytes())
-    return h.hexdigest()
-
-
-GRID = aj.Grid({"tmd1.k": KT * np.linspace(0.9, 1.1, 6), "tmd1.c": CT * np.array([0.5, 1.0])})
-QUESTION = aj.questions.FrequencyResponse(OMEGAS, amplitude=F0)
 
 
 def test_grid_study_is_labelled_and_equals_the_closed_form_response(tmp_path):
@@ -133,15 +57,15 @@ def test_interrupted_study_resumes_computing_each_chunk_once(tmp_path):
     pathlib.Path(log + ".stop").write_text("2")
     with pytest.raises(KeyboardInterrupt):
         aj.study(tmd_system(), GRID, Counting(QUESTION, log), store=store, chunk=2)
-    assert len(_lines(log)) == 2
+    assert len(log_lines(log)) == 2
     pathlib.Path(log + ".stop").unlink()
     # the rerun computes only the chunks missing: the interrupted one included
     res = aj.study(tmd_system(), GRID, Counting(QUESTION, log), store=store, chunk=2)
-    lines = _lines(log)
+    lines = log_lines(log)
     assert res.reused == 1 and len(res.computed) == 5
     # every chunk written exactly once; the interrupted chunk was computed, not written,
     # then computed again: 6 chunks, 7 computations, one of them repeated
-    assert len(lines) == 7 and len(set(_values(log))) == 6
+    assert len(lines) == 7 and len(set(log_values(log))) == 6
     ref = aj.study(tmd_system(), GRID, QUESTION, chunk=2)
     for k in ("amplitude", "status", "peak"):
         np.testing.assert_allclose(res.data[k].values, ref.data[k].values, rtol=1e-12)
@@ -170,7 +94,7 @@ def test_bad_input_is_refused_before_computing_and_leaves_the_store(tmp_path):
     store = tmp_path / "s.zarr"
     small = aj.Grid({"tmd1.k": [KT, 1.1 * KT]})
     aj.study(tmd_system(), small, QUESTION, store=store)
-    digest = _tree_digest(store)
+    digest = tree_digest(store)
     with pytest.raises(ValueError, match="unknown parameter 'k9'"):
         aj.study(tmd_system(), aj.Grid(k9=[1.0, 2.0]), QUESTION, store=store)
     with pytest.raises(ValueError, match="non-empty"):
@@ -183,71 +107,79 @@ def test_bad_input_is_refused_before_computing_and_leaves_the_store(tmp_path):
         aj.study(tmd_system(), aj.Grid({"tmd1.k": [-1.0, KT]}), QUESTION, store=tmp_path / "t")
     with pytest.raises(ValueError, match="Uniform"):
         aj.Uniform(1.0, 0.5)
-    assert _tree_digest(store) == digest
+    assert tree_digest(store) == digest
     assert not (tmp_path / "t").exists()
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    distributed = pytest.importorskip("distributed")
-    import sys
+def test_the_store_opens_as_zarr_elsewhere(tmp_path):
+    # the store is Zarr version 2: xarray with the zarr package reads the same dataset
+    # (in a process of its own: the library never loads zarr's codecs beside JAX)
+    import importlib.util
 
-    import cloudpickle
+    if importlib.util.find_spec("zarr") is None:
+        pytest.skip("zarr is not installed")
+    res = aj.study(tmd_system(), GRID, QUESTION, store=tmp_path / "s.zarr", chunk=4)
+    code = ("import sys, xarray as xr\n"
+            "ds = xr.open_zarr(sys.argv[1], consolidated=False).load()\n"
+            "import numpy as np\n"
+            "np.savez(sys.argv[2], amplitude=ds['amplitude'].values, k=ds['tmd1.k'].values)\n"
+            "print(int(ds['chunk_done'].sum()), ds['amplitude'].attrs['units'])\n")
+    run = subprocess.run([sys.executable, "-c", code, str(tmp_path / "s.zarr"),
+                          str(tmp_path / "s.npz")], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.split() == ["3", "m"]
+    other = np.load(tmp_path / "s.npz")
+    flat = res.data.stack(design=("tmd1.k", "tmd1.c"))
+    np.testing.assert_array_equal(other["amplitude"],
+                                  flat["amplitude"].transpose("design", "omega").values)
+    np.testing.assert_array_equal(other["k"], flat["tmd1.k"].values)
 
-    # the workers cannot import this test module: its question class travels by value
-    cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as lc, \
-            distributed.Client(lc) as client:
-        yield client
+
+def _dask(mode, out):
+    """tests/study/dask_study.py in a process of its own (Dask's threads and worker
+    processes kept out of the test process); returns its JSON report."""
+    pytest.importorskip("distributed")
+    here = pathlib.Path(__file__).resolve().parent
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(here.parent), os.environ.get("PYTHONPATH", "")]))
+    run = subprocess.run([sys.executable, str(here / "dask_study.py"), mode, str(out)],
+                         env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads((out / "report.json").read_text())
 
 
-def test_study_on_a_two_worker_cluster_equals_the_local_one(cluster, tmp_path):
+def test_study_on_a_two_worker_cluster_equals_the_local_one(tmp_path):
+    report = _dask("equal", tmp_path)
+    assert sorted(report["computed"]) == list(range(6)) and report["workers"] == 2
     local = aj.study(tmd_system(), GRID, QUESTION, chunk=2)
-    res = aj.study(tmd_system(), GRID, QUESTION, store=tmp_path / "s.zarr", chunk=2,
-                   client=cluster)
-    assert sorted(res.computed) == list(range(6))
+    res = aj.study(tmd_system(), GRID, QUESTION, chunk=2, store=tmp_path / "s.zarr")
+    assert res.computed == ()                    # read back: the cluster wrote every chunk
     for k in ("amplitude", "dof_amplitude", "spectral_radius", "peak"):
         np.testing.assert_allclose(res.data[k].values, local.data[k].values, rtol=1e-12,
                                    atol=0)
     np.testing.assert_array_equal(res.data["status"].values, local.data["status"].values)
 
 
-def test_a_worker_killed_mid_study_loses_no_chunk(cluster, tmp_path):
-    log = str(tmp_path / "log.txt")
-    pids = cluster.run(os.getpid)
-    killed = []
-
-    def kill_one():
-        # once a chunk is done, kill a worker in the middle of its next one
-        t0 = time.time()
-        while time.time() - t0 < 120:
-            done = [int(line.split()[0]) for line in _lines(log)]
-            busy = [int(line.split()[0]) for line in _lines(log + ".start")]
-            for pid in pids.values():
-                if done and busy.count(pid) > done.count(pid):
-                    os.kill(pid, 9)
-                    killed.append(pid)
-                    return
-            time.sleep(0.02)
-
-    grid = aj.Grid({"tmd1.k": KT * np.linspace(0.9, 1.1, 12)})
-    th = threading.Thread(target=kill_one)
-    th.start()
-    res = aj.study(tmd_system(), grid, Counting(QUESTION, log, pause=0.5),
-                   store=tmp_path / "s.zarr", chunk=1, client=cluster)
-    th.join()
+def test_a_worker_killed_mid_study_loses_no_chunk(tmp_path):
+    report = _dask("kill", tmp_path)
+    killed, log = report["killed"], str(tmp_path / "log.txt")
     assert killed
     # every chunk written once, none missing; the values those of a local run
-    assert sorted(res.computed) == list(range(12))
-    assert bool(xr.open_zarr(tmp_path / "s.zarr", consolidated=False)["chunk_done"].all())
+    assert sorted(report["computed"]) == list(range(12))
+    assert sorted(os.listdir(tmp_path / "s.zarr" / "chunk_done")) == sorted(
+        [".zarray", ".zattrs"] + [str(c) for c in range(12)])
+    grid = aj.Grid({"tmd1.k": KT * np.linspace(0.9, 1.1, 12)})
     local = aj.study(tmd_system(), grid, QUESTION, chunk=1)
+    res = aj.study(tmd_system(), grid, Counting(QUESTION, log, pause=0.5),
+                   store=tmp_path / "s.zarr", chunk=1)
+    assert res.computed == ()
     np.testing.assert_allclose(res.data["amplitude"].values, local.data["amplitude"].values,
                                rtol=1e-12)
-    assert sorted(set(_values(log))) == sorted(_values(log)) and len(_values(log)) == 12
+    assert sorted(set(log_values(log))) == sorted(log_values(log)) and len(log_values(log)) == 12
     # the killed worker had started a chunk it never finished: computed again elsewhere
-    started = [line.split() for line in _lines(log + ".start")]
-    finished = [line.split() for line in _lines(log)]
-    lost = ({v for pid, v in started if int(pid) == killed[0]}
-            - {v for pid, v in finished if int(pid) == killed[0]})
+    started = [line.split() for line in log_lines(log + ".start")]
+    finished = [line.split() for line in log_lines(log)]
+    lost = ({v for pid, v in started if int(pid) == killed}
+            - {v for pid, v in finished if int(pid) == killed})
     assert len(lost) == 1 and len(started) == 13, (started, finished)

@@ -11,7 +11,7 @@ import pytest
 from absorber_jax._io.cli import main
 from absorber_jax._io.scene import scene_from_dict
 
-pytest.importorskip("zarr")
+pytest.importorskip("xarray")
 
 SCENE = {
     "structure": {"type": "matrices", "mass": [[1.0]], "stiffness": [[1e4]],

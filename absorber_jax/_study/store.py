@@ -11,8 +11,8 @@ by a crash is computed again and never read half-written.  The store's ``fingerp
 attribute identifies the study (system, designs, question and chunk size); a store with
 another one is refused and left untouched.
 
-The library writes and reads the format itself (numpy and JSON only: no compression, no
-native codec libraries in the computing process); other tools open it as Zarr
+The library writes and reads the format itself (numpy and JSON only, no compression, no
+dependency on the ``zarr`` package); other tools open it as Zarr
 (``xarray.open_zarr(path)`` with the ``zarr`` package installed).  Reference: the Zarr
 storage specification version 2, https://zarr-specs.readthedocs.io/en/latest/v2/v2.0.html.
 """

@@ -113,7 +113,7 @@ def test_bad_input_is_refused_before_computing_and_leaves_the_store(tmp_path):
 
 def test_the_store_opens_as_zarr_elsewhere(tmp_path):
     # the store is Zarr version 2: xarray with the zarr package reads the same dataset
-    # (in a process of its own: the library never loads zarr's codecs beside JAX)
+    # (in a process of its own, which needs no JAX)
     import importlib.util
 
     if importlib.util.find_spec("zarr") is None:

@@ -176,10 +176,13 @@ def test_a_worker_killed_mid_study_loses_no_chunk(tmp_path):
     assert res.computed == ()
     np.testing.assert_allclose(res.data["amplitude"].values, local.data["amplitude"].values,
                                rtol=1e-12)
-    assert sorted(set(log_values(log))) == sorted(log_values(log)) and len(log_values(log)) == 12
-    # the killed worker had started a chunk it never finished: computed again elsewhere
+    # the killed worker was in the middle of a chunk: that chunk was started again on the
+    # other worker (13 starts, that one twice); it may also have been logged as finished
+    # by the killed worker in the instant before the kill arrived, but it was written once
     started = [line.split() for line in log_lines(log + ".start")]
-    finished = [line.split() for line in log_lines(log)]
-    lost = ({v for pid, v in started if int(pid) == killed}
-            - {v for pid, v in finished if int(pid) == killed})
-    assert len(lost) == 1 and len(started) == 13, (started, finished)
+    finished = log_values(log)
+    assert len(started) == 13, started
+    (again,) = [v for v in {v for _, v in started} if [w for _, w in started].count(v) == 2]
+    assert killed in [int(pid) for pid, v in started if v == again]
+    assert sorted(set(finished)) == sorted({v for _, v in started}) and len(set(finished)) == 12
+    assert all(finished.count(v) == 1 for v in finished if v != again)

@@ -146,25 +146,11 @@ def field_unit(field) -> str:
 
 def common_unit(units):
     """The one unit of ``units``, or ``"a or b"`` where they differ (``"m"`` for none)."""
-    return _common(units)
-
-
-def _common(units):
     units = sorted(set(units))
     return units[0] if len(units) == 1 else " or ".join(units) if units else "m"
 
 
 def weighted_name(names, weights):
-    """``"x3 - x2"``, ``"0.5 x1 + 0.5 x2"``: a readable weighted sum."""
-    return _weighted(names, weights)
-
-
-def state_unit(name, dof_units, identity_map):
-    """Unit of a public state component by its name (see ``_state_unit``)."""
-    return _state_unit(name, dof_units, identity_map)
-
-
-def _weighted(names, weights):
     """``"x3 - x2"``, ``"0.5 x1 + 0.5 x2"``: a readable weighted sum (positive terms
     first)."""
     order = sorted(range(len(names)), key=lambda i: weights[i] < 0)
@@ -177,7 +163,7 @@ def _weighted(names, weights):
     return text
 
 
-def _state_unit(name, dof_units, identity_map):
+def state_unit(name, dof_units, identity_map):
     """Unit of a public state component by its name (two-mass: ``x1, v1, x2, v2, z<i>``;
     structure: ``q<i>, qd<i>, <element>.u|w|z<i>``)."""
     last = name.split(".")[-1]
@@ -216,7 +202,7 @@ def generic_signals(system) -> Signals:
     dofs = tuple((n, dof_unit(n)) for n in dof_names)
     observable, obs_unit = (dof_names[0], dofs[0][1]) if dof_names else ("observable", "m")
     stroke = f"{dof_names[1]} - {dof_names[0]}" if len(dof_names) == 2 else "absorber stroke"
-    states = tuple((n, _state_unit(n, [], False)) for n in system.state_names)
+    states = tuple((n, state_unit(n, [], False)) for n in system.state_names)
     return Signals(observable=observable, observable_unit=obs_unit, stroke=stroke, dofs=dofs,
                    states=states, parameters=parameter_units(system))
 

@@ -188,13 +188,7 @@ class ExactPeak(AbstractQuestion):
         return {}
 
     def variables(self, system):
-        sig = signals_of(system)
-        return {
-            "peak": ((), sig.observable_unit, f"peak amplitude of {sig.observable}", "f8"),
-            "peak_omega": ((), "rad/s", "frequency of the peak", "f8"),
-            "located": ((), "", "peak located (dA/dω = 0)", "bool"),
-            "status": ((), "", "0 converged; else aj.describe(status)", "i4"),
-        }
+        return _peak_variables(system, "peak", located=True)
 
     def describe(self):
         return (f"ExactPeak(band {self.band[0]:g}..{self.band[1]:g} rad/s, amplitude "
@@ -233,13 +227,7 @@ class RobustPeak(AbstractQuestion):
         return {}
 
     def variables(self, system):
-        sig = signals_of(system)
-        return {
-            "peak": ((), sig.observable_unit, f"robust peak amplitude of {sig.observable}",
-                     "f8"),
-            "peak_omega": ((), "rad/s", "frequency of the robust peak", "f8"),
-            "status": ((), "", "0 converged; else aj.describe(status)", "i4"),
-        }
+        return _peak_variables(system, "robust peak", located=False)
 
     def describe(self):
         return (f"RobustPeak(band {self.band[0]:g}..{self.band[1]:g} rad/s, amplitude "
@@ -313,6 +301,18 @@ class Attractors(AbstractQuestion):
                 if per:
                     out["largest"][i, j], out["smallest"][i, j] = max(per), min(per)
         return out
+
+
+def _peak_variables(system, what, *, located):
+    """The answer of a peak question: ``peak`` [the observable's unit], ``peak_omega``
+    [rad/s], (``located``,) ``status``."""
+    sig = signals_of(system)
+    out = {"peak": ((), sig.observable_unit, f"{what} amplitude of {sig.observable}", "f8"),
+           "peak_omega": ((), "rad/s", f"frequency of the {what}", "f8")}
+    if located:
+        out["located"] = ((), "", "peak located (dA/dω = 0)", "bool")
+    out["status"] = ((), "", "0 converged; else aj.describe(status)", "i4")
+    return out
 
 
 def _grid(omegas):

@@ -28,7 +28,8 @@ import equinox as eqx
 import jax
 import numpy as np
 
-FILL = {"f8": np.nan, "i4": -1, "bool": False}
+# what an answer variable holds where nothing is computed yet, by dtype kind
+FILL = {"f": np.nan, "i": -1, "b": False}
 DONE = "chunk_done"
 
 
@@ -160,7 +161,7 @@ class Store:
             folder = os.path.join(self.path, name)
             os.makedirs(folder)
             # data variables: their fill value where not computed; coordinates: none
-            fill = {"f": np.nan, "b": False}.get(dtype.kind, -1) if data_var else None
+            fill = FILL[dtype.kind] if data_var else None
             _json(os.path.join(folder, ".zarray"), {
                 "zarr_format": 2, "shape": list(var.shape), "chunks": list(chunks),
                 "dtype": dtype.str, "compressor": None, "filters": None, "order": "C",
@@ -248,7 +249,7 @@ def skeleton(table, coords, variables, chunk, attrs):
     for name, (dims, unit, description, dtype) in variables.items():
         shape = (P,) + tuple(len(coords[d]) for d in dims)
         data[name] = xr.Variable(("design",) + tuple(dims),
-                                 np.full(shape, FILL[dtype], dtype=np.dtype(dtype)),
+                                 np.full(shape, FILL[np.dtype(dtype).kind], dtype=np.dtype(dtype)),
                                  attrs={"units": unit, "long_name": description})
     data[DONE] = xr.Variable(("chunk",), np.zeros(C, bool),
                              attrs={"long_name": "chunk computed and written"})

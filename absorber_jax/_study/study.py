@@ -11,7 +11,7 @@ from .._core.checks import require_x64
 from .._core.progress import PointProgress
 from .._core.units import signals_of
 from .._systems.base import AbstractSystem
-from .._systems.params import parameter_names, resolve
+from .._systems.params import get_param, parameter_names, replace_params, resolve
 from .designs import AbstractDesigns
 from .questions import AbstractQuestion
 from .result import StudyResult
@@ -219,8 +219,6 @@ def _remote(payload, params):
 
 
 def _check_designs(system, table):
-    from .._systems.params import replace_params
-
     P = int(next(iter(table.values())).shape[0])
     for name, v in table.items():
         for i in {int(np.argmin(v)), int(np.argmax(v))}:
@@ -232,8 +230,6 @@ def _check_designs(system, table):
 
 
 def _nominal(system, name):
-    from .._systems.params import get_param
-
     try:
         return float(np.asarray(get_param(system, name)))
     except (TypeError, ValueError):

@@ -35,6 +35,7 @@ from .constants import (
 )
 from .events import _events, _g
 from .problem import _corrector, _defect, _jacobian, _Problem, _scale_at
+from .sequence import event_log, event_rates, sequence_with, solve_sequence
 
 
 class _Driver:
@@ -486,20 +487,20 @@ def _orbit_kinematics(system, forcing, x0, ts, cfg):
     return jax.vmap(kinematics)(ts, ys * scale), impacts
 
 
-def _apex(pen, rate, acc, dt, length, speed):
-    """The highest apex of free flight towards a wall among sampled penetrations ``pen``,
-    rates ``rate`` and accelerations ``acc`` ``(N + 1, walls)`` a time ``dt`` apart: where
-    the rate turns from approaching to leaving *smoothly* (the change over the interval the
+def _apexes(pen, rate, acc, dt, length, speed):
+    """The apexes of free flight towards a wall among sampled penetrations ``pen``, rates
+    ``rate`` and accelerations ``acc`` ``(N + 1, walls)`` a time ``dt`` apart: where the rate
+    turns from approaching to leaving *smoothly* (the change over the interval the
     trapezoidal rule of the accelerations, within a tenth: an impact reverses the rate at
     once), refined by the cubic Hermite interpolant of the interval.  Intervals that touch a
-    hold (at the wall, at rest relative to it) are not apexes.  ``-length`` when there is
-    none."""
+    hold (at the wall, at rest relative to it) are not apexes.  Returns their heights [m]
+    (the penetration there, at least the interval's ends) and times [s] from the first
+    sample."""
     held = (np.abs(rate) <= 1e-12 * speed) & (np.abs(pen) <= 1e-10 * length)
     p0, p1, r0, r1 = pen[:-1], pen[1:], rate[:-1] * dt, rate[1:] * dt
     smooth = np.abs(r1 - r0 - 0.5 * (acc[:-1] + acc[1:]) * dt**2) <= 0.1 * (r0 - r1)
     turn = (r0 > 0) & (r1 <= 0) & smooth & ~held[:-1] & ~held[1:]
-    if not np.any(turn):
-        return -length
+    start = np.nonzero(turn)[0]
     p0, p1, r0, r1 = p0[turn], p1[turn], r0[turn], r1[turn]
     # H(τ) = (2τ³ - 3τ² + 1) p0 + (τ³ - 2τ² + τ) r0 + (-2τ³ + 3τ²) p1 + (τ³ - τ²) r1
     a = 6 * (p0 - p1) + 3 * (r0 + r1)
@@ -514,7 +515,14 @@ def _apex(pen, rate, acc, dt, length, speed):
     tau = np.clip(np.nan_to_num(tau, nan=0.5), 0.0, 1.0)
     h = ((2 * tau**3 - 3 * tau**2 + 1) * p0 + (tau**3 - 2 * tau**2 + tau) * r0
          + (-2 * tau**3 + 3 * tau**2) * p1 + (tau**3 - tau**2) * r1)
-    return float(np.max(np.maximum(h, np.maximum(p0, p1))))
+    return np.maximum(h, np.maximum(p0, p1)), (start + tau) * dt
+
+
+def _apex(pen, rate, acc, dt, length, speed):
+    """The highest apex of free flight towards a wall (``_apexes``), ``-length`` when there
+    is none."""
+    heights, _ = _apexes(pen, rate, acc, dt, length, speed)
+    return float(np.max(heights)) if heights.size else -length
 
 
 def _approach(drv, point):
@@ -667,6 +675,9 @@ def _beyond(drv, bif, best, direction, e):
     fold).  A generator of corrector requests; returns ``(bif, the point or None)``, its
     tangent leading away from the grazing orbit."""
     count = _impacts(best)
+    c = yield from _onto_born(drv, best, direction, e)
+    if c is not None:
+        return bif, c
     for side in (1.0, -1.0):
         for frac in GRAZING_STEPS:
             z = best["z"].copy()
@@ -676,6 +687,67 @@ def _beyond(drv, bif, best, direction, e):
                 c["t"] = c["t"] * np.sign(c["t"] @ (c["z"] - best["z"]) or 1.0)
                 return bif, c
     return bif, None
+
+
+def _grazing_time(drv, point):
+    """The time [s] after the section of the highest apex of the free flights of branch
+    point ``point``'s orbit (a grazing orbit: where the new impact is born), or None."""
+    system, forcing = drv.prob.in_section(jnp.asarray(point["z"][-1]))
+    n = int(drv.prob.n)
+    ts = jnp.linspace(0.0, n * forcing.period, GRAZING_SAMPLES * n + 1)
+    cfg = dataclasses.replace(drv.prob.cfg.over_periods(n), rtol=1e-12, atol=1e-12)
+    (pen, rate, acc), _ = _orbit_kinematics(system, forcing, jnp.asarray(point["xi"]), ts,
+                                            cfg)
+    length = float(np.max(np.abs(np.asarray(drv.prob.s0))))
+    heights, times = _apexes(*(np.asarray(a) for a in (pen, rate, acc)), float(ts[1]),
+                             length, length * float(forcing.omega))
+    return float(times[np.argmax(heights)]) if heights.size else None
+
+
+def _onto_born(drv, best, direction, e):
+    """The orbit with the impact born at the grazing orbit ``best``, from the sequence of
+    its events with a zero-speed impact added at its grazing apex, solved with that
+    sequence held fixed (``sequence.solve_sequence``: smooth through grazing, where the
+    period map is not) a fraction ``GRAZING_STEPS`` of the step ahead, then behind; then
+    corrected by shooting from that orbit's state on the section, and kept where it has the
+    new impact and no flight through a wall.  A generator of corrector requests; returns
+    the point (its tangent leading away from the grazing orbit) or None."""
+    prob = drv.prob
+    p_g = float(best["z"][-1])
+    system, forcing = prob.in_section(jnp.asarray(p_g))
+    n = int(prob.n)
+    period = n * float(forcing.period)
+    sc = np.asarray(state_scale(system, forcing))
+    cfg = prob.cfg.over_periods(n)
+    times, modes, status = event_log(system, forcing, jnp.asarray(best["xi"] / sc),
+                                     jnp.asarray(period), cfg)
+    t_new = _grazing_time(drv, best)
+    if int(status) != Status.SUCCESS or t_new is None:
+        return None
+    seq = sequence_with(times, modes, t_new, period)
+    if seq is None:
+        return None
+    theta, seg, active = seq
+    count, N = _impacts(best), sc.shape[0]
+    for side in (1.0, -1.0):
+        for frac in GRAZING_STEPS:
+            p = p_g + side * direction * frac * drv.method.step
+            sys_p, forc_p = prob.in_section(jnp.asarray(p))
+            u0 = np.concatenate([best["xi"] / np.asarray(state_scale(sys_p, forc_p)), theta])
+            u, status, _ = solve_sequence(sys_p, forc_p, n, jnp.asarray(u0), jnp.asarray(seg),
+                                          jnp.asarray(active), cfg)
+            if int(status) != Status.SUCCESS:
+                continue
+            rates = np.asarray(event_rates(sys_p, forc_p, n, u, jnp.asarray(seg),
+                                           jnp.asarray(active), cfg))
+            if not np.all(rates[active] > 0):
+                continue            # the new impact would be reached from beyond its wall
+            x = np.asarray(u)[:N] * np.asarray(state_scale(sys_p, forc_p))
+            c = yield (drv, np.append(x / np.asarray(prob.s0), p), e, True)
+            if c["ok"] and _impacts(c) == count + 1 and _clear(drv, c):
+                c["t"] = c["t"] * np.sign(c["t"] @ (c["z"] - best["z"]) or 1.0)
+                return c
+    return None
 
 
 def _clear(drv, point):

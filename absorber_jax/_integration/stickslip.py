@@ -69,13 +69,17 @@ def _sg(x):
 
 
 def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_steps, scale,
-                 max_segments, norm=optx.rms_norm):
+                 max_segments, norm=optx.rms_norm, log=False):
     """Integrate hybrid ``system`` from scaled state ``x0`` at ``t0`` to ``t1``.
 
     ``ts``: save times in ``[t0, t1]`` (or None).  Returns ``(ys at ts or None, state at
     t1, status, number of steps, number of segments, (impacts, time in contact [s]))``;
     all states scaled by ``scale``.  A start outside the modes' domain (a Newton iterate
-    beyond a rigid wall) is first mapped into it (``system.admissible_state``)."""
+    beyond a rigid wall) is first mapped into it (``system.admissible_state``).
+
+    ``log``: also return the event log ``(times, modes)``, arrays of ``max_segments``:
+    segment ``k`` runs in mode ``modes[k]`` and ends at ``times[k]`` (its switching
+    event; ``inf`` for the segment that reaches ``t1`` and those never run)."""
 
     def rate(t, x, mode):
         return system.mode_rate(t, x * scale, forcing, mode) / scale
@@ -118,7 +122,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
                                    throw=False, event=event, adjoint=diffrax.ForwardMode())
 
     def body(c):
-        t, x, mode, k, st, nsteps, ys, impacts, closed = c
+        t, x, mode, k, st, nsteps, ys, impacts, closed, events = c
         sol = segment(t, x, mode)
         hit = sol.event_mask
         # a located event counts even when the bisection ran out of iterations (rounding
@@ -155,21 +159,30 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         impacts = impacts + (hit & system.event_is_impact(t_end, _sg(x_star) * scale, forcing,
                                                           mode)).astype(int)
         closed = closed + jnp.where(system.in_contact(mode), t_end - t, 0.0)
+        if log:
+            times, modes = events
+            events = (times.at[k].set(jnp.where(hit, t_end, jnp.inf)), modes.at[k].set(mode))
         return (t_end, x_new, new_mode, k + 1, st, nsteps + sol.stats["num_steps"], ys,
-                impacts, closed)
+                impacts, closed, events)
 
     def cond(c):
-        t, _, _, k, st, _, _, _, _ = c
+        t, _, _, k, st, _, _, _, _, _ = c
         return (t < t1b) & (k < max_segments) & (st == Status.SUCCESS)
 
     ys0 = None if ts is None else jnp.zeros(ts.shape + x0.shape, x0.dtype)
+    events0 = ((jnp.full((max_segments,), jnp.inf, t0b.dtype),
+                jnp.zeros((max_segments,) + jnp.shape(mode0), jnp.asarray(mode0).dtype))
+               if log else None)
     c0 = (t0b, x0, mode0, jnp.zeros((), int), jnp.asarray(Status.SUCCESS),
-          jnp.zeros((), int), ys0, jnp.zeros((), int), jnp.zeros((), t0b.dtype))
-    t, x, mode, k, st, nsteps, ys, impacts, closed = jax.lax.while_loop(cond, body, c0)
+          jnp.zeros((), int), ys0, jnp.zeros((), int), jnp.zeros((), t0b.dtype), events0)
+    t, x, mode, k, st, nsteps, ys, impacts, closed, events = jax.lax.while_loop(cond, body,
+                                                                                 c0)
     st = jnp.where((st == Status.SUCCESS) & (t < t1b), Status.MAX_STEPS, st)
     # a final time that depends on parameters (nT): move along the last mode's field
     x = x + rate(t1b, _sg(x), mode) * (t1 - t1b)
     if ts is not None:
         modes = jax.vmap(lambda tt, yy: system.mode_of(tt, yy * scale, forcing))(ts_b, _sg(ys))
         ys = ys + jax.vmap(rate)(ts_b, _sg(ys), modes) * jnp.reshape(ts - ts_b, (-1, 1))
+    if log:
+        return ys, x, st, nsteps, k, (impacts, closed), events
     return ys, x, st, nsteps, k, (impacts, closed)

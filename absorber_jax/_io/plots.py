@@ -228,7 +228,8 @@ def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=None, 
     """Stroboscopic bifurcation diagram from
     [`bifurcation_diagram`][absorber_jax.bifurcation_diagram]: the observable at ``t = kT`` over the
     statistics window, for every initial state, against ``ω``; periodic responses in colour by
-    period multiple (a period-n orbit shows n points), the others grey.  ``scale``, ``unit``: the
+    period multiple (a period-n orbit shows n points; the period of the attractor the state
+    reaches, ``AttractorMap.periods``), the others grey.  ``scale``, ``unit``: the
     values' display factor and unit (default metres as mm)."""
     plt, ax, own = _axes(path, ax)
     colors = plt.get_cmap("tab10")
@@ -236,9 +237,10 @@ def plot_bifurcation_diagram(maps, path=None, *, ax=None, title="", scale=None, 
     factor, shown = _scale_and_unit(unit_of("section", sig), scale, unit)
     seen = set()
     for m in maps:
+        periods = m.periods()
         for k in range(m.section.shape[0]):
-            ok = int(m.steady.status[k]) == 0
-            n = int(m.steady.period_multiple[k]) if ok else 0
+            n = int(periods[k])
+            ok = n > 0
             c = colors((n - 1) % 10) if ok else "0.6"
             lab = (f"period-{n}" if ok else "not periodic")
             ax.plot(np.full(m.section.shape[1], m.omega), m.section[k] * factor, ".",

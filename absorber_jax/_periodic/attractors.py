@@ -151,6 +151,14 @@ class AttractorMap(eqx.Module):
     attractors: tuple
     signals: Signals = eqx.field(static=True, default=Signals())
 
+    def periods(self):
+        """The period multiple of the response reached from each initial state, that of the
+        attractor it belongs to (0 where that attractor is not periodic): what the
+        bifurcation diagram colours each state's samples by, so that it and ``attractors``
+        never disagree."""
+        return np.array([a.period_multiple if a.periodic else 0
+                         for a in (self.attractors[int(j)] for j in self.label)], dtype=int)
+
     def summary(self):
         """The map as a JSON-ready dict: forcing, number of initial states, and each
         attractor's ``summary()``."""

@@ -3,13 +3,19 @@ tests/reference_impacts.py (simulation with chatter and sticking, periodic orbit
 per period, Floquet multipliers by finite differences of its period map), design gradients
 against central differences, vmapped sweeps, and the compliant laws converging to it."""
 
+import warnings
+
 import jax
 import jax.numpy as jnp
+import matplotlib
 import numpy as np
 import pytest
 from reference_impacts import RigidImpactAbsorber
 
 import absorber_jax as aj
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
 
 # the hard-contact scene of scripts/benchmark_hard_contacts.py with a rigid ball
 SCENE = dict(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3)
@@ -268,18 +274,20 @@ def test_continuation_passes_grazing_and_locates_it():
         assert sum(k == "impact" for _, k in events) == 1
 
 
-def test_continuation_locates_the_grazing_where_a_fifth_impact_is_born():
+def test_continuation_passes_the_grazing_where_a_fifth_impact_is_born():
     # the hard scene with e matched to its Kelvin-Voigt contact: from 20 rad/s, unstable
-    # orbits with four impacts a period until one flight between them grazes a wall
+    # orbits with four impacts a period until one flight between them grazes a wall; the
+    # branch goes on along the orbits with the fifth impact born there
     e = aj.restitution_of(aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True),
                           SCENE["m"], SCENE["M"])
-    with pytest.warns(RuntimeWarning, match="grazes a rigid wall"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)      # it stops short further on
         br = aj.continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=20.0), "omega",
                              bounds=(20.0, 26.0))
-    assert br.termination == "grazing" and not br.reached
-    (graze,) = br.of_kind("grazing")
+    (graze,) = br.of_kind("grazing")[:1]
     assert graze.located and 25.0 < graze.value < 25.4
-    assert np.all(np.asarray(br.steady.impacts)[: graze.index + 1] == 4.0)
+    impacts = np.asarray(br.steady.impacts)
+    assert np.all(impacts[: graze.index + 1] == 4.0)
     # the event-exact reference at the located value: periodic, four impacts, and the
     # highest apex of the relative motion between them touches the wall
     W = float(graze.value)
@@ -301,6 +309,16 @@ def test_continuation_locates_the_grazing_where_a_fifth_impact_is_born():
     y, _ = reference(float(br.values[i]), e).run(np.asarray(br.states[i]), 0.0,
                                                  2 * np.pi / float(br.values[i]), ts)
     assert np.max(np.abs(y[:, 2] - y[:, 0])) <= SCENE["gap"] * (1 + 1e-12)
+    # beyond it: orbits with five impacts, born below the grazing value (the branch
+    # folds back there), each periodic for the reference with five impacts
+    born = np.flatnonzero(impacts == 5.0)
+    assert born.size >= 5 and born[0] == graze.index + 1
+    assert np.all(np.asarray(br.values)[born[:5]] < W)
+    for j in born[:3]:
+        Wj = float(br.values[j])
+        y, events = reference(Wj, e).run(np.asarray(br.states[j]), 0.0, 2 * np.pi / Wj)
+        assert np.max(np.abs(y[-1] - np.asarray(br.states[j])) / scale) < 1e-7
+        assert sum(k == "impact" for _, k in events) == 5
 
 
 @pytest.mark.slow
@@ -321,6 +339,17 @@ def test_sweep_continuation_and_attractor_map_agree_on_an_impacting_orbit():
     assert float(np.asarray(br.steady.impacts)[i]) == 4.0 and bool(np.asarray(br.stable)[i])
     near = [a for a in periodic if abs(a.amplitude - float(ss.amplitude)) < 1e-6]
     assert near and near[0].impacts == 4.0 and near[0].period_multiple == 1
+    # the bifurcation diagram colours the states that reach it as period-1 (the attractor's
+    # period, whatever each state's marching status), and says so in its legend
+    (dmap,) = aj.bifurcation_diagram(rigid(), f, [omega], samples=8)
+    assert np.all(dmap.periods()[near[0].members] == 1)
+    assert np.all(dmap.periods() == amap.periods())
+    fig, ax = plt.subplots()
+    aj.plot_bifurcation_diagram([dmap], ax=ax)
+    labels = ax.get_legend_handles_labels()[1]
+    plt.close(fig)
+    assert "period-1" in labels
+    assert ("not periodic" in labels) == any(not a.periodic for a in amap.attractors)
 
 
 def test_energy_lost_in_sticking_and_chatter_is_newtons_loss_per_impact():

@@ -14,8 +14,10 @@ Scenes:
   rad/s, continued in ω from 20 up (``continuation`` at its defaults).  Rigid: ``e``
   matched to the Kelvin–Voigt 2e4 N/m, damping 2 N s/m adhesive contact
   (``restitution_of``); penalty: that Kelvin–Voigt law.
+- **band**: the hard scene's band 20–45 rad/s by ``band_continuation`` at its defaults,
+  both routes, each run twice (the second compiled).
 
-    python scripts/benchmark_rigid_impacts.py [--parts building,hard] [--out FILE]
+    python scripts/benchmark_rigid_impacts.py [--parts building,hard,band] [--out FILE]
 
 Prints each result as it comes; ``--out`` appends them to FILE
 (docs/benchmark_rigid_impacts.txt holds the last run).
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import time
+import warnings
 
 import numpy as np
 
@@ -104,15 +107,45 @@ def continue_hard():
                + "".join(f"; grazing at {b.value:.7g} rad/s" for b in br.of_kind("grazing")))
 
 
+def band_hard():
+    """``band_continuation`` over 20-45 rad/s on the hard scene, both routes, each timed twice
+    (the second run compiled): points, grazings located, and the parts no branch reached."""
+    kv = aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True)
+    e = aj.restitution_of(kv, 0.2, 1.0)
+    for name, contact in ((f"rigid e={e:.4f}", aj.Restitution(e)), ("penalty KV 2e4", kv)):
+        system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3, contact=contact)
+        forcing = aj.Harmonic(amplitude=3.0, omega=20.0)
+
+        def run(system=system, forcing=forcing):
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                brs = aj.band_continuation(system, forcing, "omega", bounds=(20.0, 45.0))
+            return brs, [str(w.message) for w in caught if "no branch reached" in str(w.message)]
+
+        (brs, gaps), t_first = timed(run)
+        (brs, gaps), t_again = timed(run)
+        points = sum(len(b.values) for b in brs)
+        grazings = sum(len(b.of_kind("grazing")) for b in brs)
+        ends = {}
+        for b in brs:
+            ends[b.termination] = ends.get(b.termination, 0) + 1
+        report(f"[band] {name}: band_continuation 20-45 rad/s: {t_first:.1f} s with "
+               f"compilation, {t_again:.1f} s compiled; {len(brs)} half-branches, {points} "
+               f"points, {grazings} grazings; ended {ends}"
+               + (f"; {gaps[0]}" if gaps else "; the whole band reached"))
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--parts", default="building,hard")
+    ap.add_argument("--parts", default="building,hard,band")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
     if "building" in a.parts:
         sweep_building()
     if "hard" in a.parts:
         continue_hard()
+    if "band" in a.parts:
+        band_hard()
     if a.out:
         with open(a.out, "a") as fh:
             fh.write("\n".join(LINES) + "\n")

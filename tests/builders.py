@@ -1,5 +1,7 @@
 """Systems and settings the tests share, each built once here."""
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 import absorber_jax as aj
@@ -70,3 +72,21 @@ def tmd(mu, f, zeta):
     ka = m * (f * WN) ** 2
     law = aj.KelvinVoigt(stiffness=ka, damping=2 * zeta * np.sqrt(ka * m), adhesive=True)
     return aj.ImpactAbsorber(M=M, k=K, c=0.0, m=m, gap=0.0, contact=law)
+
+
+class CubicSpring(aj.AbstractElement):
+    """``f = k3 (x_dof - x_other)³`` between two degrees of freedom, or to ground: an element
+    written as a user would, from the public API alone."""
+
+    dof: str = eqx.field(static=True)
+    k3: float
+    other: str | None = eqx.field(static=True, default=None)
+    name: str | None = eqx.field(static=True, default=None)
+    kind = "cubic"
+
+    def evaluate(self, x, v, z):
+        f = self.k3 * (x[0] - x[1]) ** 3
+        return jnp.stack([-f, f]), None
+
+    def energy(self, x, v, z):
+        return 0.25 * self.k3 * (x[0] - x[1]) ** 4

@@ -203,6 +203,16 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     largest stroke per absorber, the scaled state at ``nT`` and the internal states sampled
     (``sample_orbit``)."""
     s, ts, st, end = sample_orbit(system, forcing, x0, n, cfg, n_cap, with_end=True)
+    stats, stroke_max = sample_statistics(system, forcing, s, ts, x0, n, cfg, n_cap)
+    return stats, st, stroke_max, end, s
+
+
+def sample_statistics(system, forcing, s, ts, x0=None, n=1, cfg=None, n_cap=1):
+    """The statistics of an orbit from its internal states ``s`` at uniform times ``ts``
+    over one response period ``nT`` (amplitudes of the observable, outputs and strokes,
+    contacts: see ``SteadyState``), and the largest stroke per absorber.  ``x0`` and
+    ``cfg``: the scaled state at ``t = 0`` and the integrator, needed only to count rigid
+    impacts at their events."""
     phase = jnp.exp(-1j * forcing.omega * ts)
 
     def stats_of(y):
@@ -217,7 +227,7 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
                  absorber_rms=most(u_rms), impacts=impacts, contact_fraction=contact,
                  dof_amplitude=d_amp, dof_rms=d_rms, dof_harmonic=d_harm)
-    return stats, st, jnp.max(jnp.abs(u), axis=0), end, s
+    return stats, jnp.max(jnp.abs(u), axis=0)
 
 
 # The integration tolerance of a large state's monodromy (>= SENSITIVITY_STATES states)
@@ -369,6 +379,20 @@ def finish_orbit(system, forcing, x, n, cfg, status, residual, iterations, with_
         mult = floquet(system, forcing, x, n, cfg, n_cap=n_cap)
     else:
         mult = jnp.full((system.num_states,), jnp.nan + 0j)
+    status = jnp.where(status == Status.SUCCESS, st2, status)
+    at_zero = x * scale if section is None else samples[(-section) % samples.shape[0]]
+    steady = steady_of(system, stats, stroke_max, at_zero, n, mult, status, residual,
+                       iterations)
+    if section is None:
+        return steady
+    return steady, section_of(system, samples, section, at_zero)
+
+
+def steady_of(system, stats, stroke_max, at_zero, n, mult, status, residual, iterations):
+    """The ``SteadyState`` of an orbit from its statistics (``sample_statistics``), its
+    internal state at ``t = 0``, its Floquet multipliers and the solver's status: a point
+    whose statistics are not finite is flagged ``NONFINITE``, and a failed point (or one
+    whose multipliers are not known) is never called stable."""
     # an absorber floating without touching the walls: its free position and velocity give a
     # structural double multiplier 1 (a Jordan block, split by ~sqrt(rounding) numerically);
     # stability is judged on the other multipliers (2 per floating absorber set aside)
@@ -376,20 +400,14 @@ def finish_orbit(system, forcing, x, n, cfg, status, residual, iterations, with_
     dist = jnp.abs(mult - 1.0)
     kth = jnp.sort(dist)[jnp.clip(2 * pairs - 1, 0, dist.shape[0] - 1)]
     structural = (pairs > 0) & (dist <= kth) & (dist < 1e-2)
-    status = jnp.where(status == Status.SUCCESS, st2, status)
     vals = jnp.concatenate([jnp.ravel(stats[k]) for k in stats])
-    finite = jnp.all(jnp.isfinite(vals)) & jnp.all(jnp.isfinite(x))
+    finite = jnp.all(jnp.isfinite(vals)) & jnp.all(jnp.isfinite(at_zero))
     status = jnp.where((status == Status.SUCCESS) & ~finite, Status.NONFINITE, status)
-    # a failed point (or multipliers not computed) is never called stable
     stable = (jnp.all((jnp.abs(mult) <= 1.0 + 1e-6) | structural) & (status == Status.SUCCESS)
               & jnp.all(jnp.isfinite(mult)))
-    at_zero = x * scale if section is None else samples[(-section) % samples.shape[0]]
-    steady = SteadyState(**stats, period_multiple=jnp.asarray(n),
-                         state=system.to_public(at_zero), multipliers=mult, stable=stable,
-                         status=status, residual=residual, iterations=jnp.asarray(iterations))
-    if section is None:
-        return steady
-    return steady, section_of(system, samples, section, at_zero)
+    return SteadyState(**stats, period_multiple=jnp.asarray(n),
+                       state=system.to_public(at_zero), multipliers=mult, stable=stable,
+                       status=status, residual=residual, iterations=jnp.asarray(iterations))
 
 
 class Section(eqx.Module):

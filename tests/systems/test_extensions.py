@@ -9,29 +9,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from builders import CubicSpring  # a user-written element, shared with other tests
 from scipy.integrate import solve_ivp
 
 import absorber_jax as aj
 
 
 # --------------------------------------------------------------------- user-written pieces
-class CubicSpring(aj.AbstractElement):
-    """``f = k3 (x_dof - x_other)³`` between two degrees of freedom, or to ground."""
-
-    dof: str = eqx.field(static=True)
-    k3: float
-    other: str | None = eqx.field(static=True, default=None)
-    name: str | None = eqx.field(static=True, default=None)
-    kind = "cubic"
-
-    def evaluate(self, x, v, z):
-        f = self.k3 * (x[0] - x[1]) ** 3
-        return jnp.stack([-f, f]), None
-
-    def energy(self, x, v, z):
-        return 0.25 * self.k3 * (x[0] - x[1]) ** 4
-
-
 class CubicWall(aj.AbstractCompliantLaw):
     """``f(δ, δ̇) = k δ³ + c δ̇`` (a user-written contact law)."""
 

@@ -45,7 +45,7 @@ from .._core.checks import check_scalar
 from .._core.status import Status
 from .._integration.flow import integrate_flow, state_scale
 from .base import AbstractSteadyMethod
-from .orbit import SAMPLES_PER_PERIOD, sample_statistics, steady_of
+from .orbit import SAMPLES_PER_PERIOD, floquet, sample_statistics, steady_of
 
 # the first guess is projected from the last of this many periods integrated from the start
 WARMUP = 4
@@ -68,6 +68,13 @@ class HarmonicBalance(AbstractSteadyMethod):
     - ``tol``: Newton's tolerance on the largest residual coefficient, the state scaled to
       order one and time by ``1/ω``.
     - ``newton_steps``: Newton iteration budget.
+    - ``condense``: where the system separates into a linear structure and force laws at a
+      few degrees of freedom (``system.condensation()``: a ``StructuralSystem`` whose
+      elements have no states of their own), the unknowns are the harmonics of those
+      degrees of freedom only, the structure entering through its exact receptance at each
+      harmonic; the multipliers then come from the monodromy of the full system at the
+      orbit's state (Hill's method needs the full balance).  ``False``: balance the whole
+      state.
 
     The first guess is the method's own start (the system's linear response) or the state a
     caller gives, integrated over ``WARMUP`` periods, the last projected on the harmonics;
@@ -84,6 +91,7 @@ class HarmonicBalance(AbstractSteadyMethod):
     samples: int | None = eqx.field(static=True, default=None)
     tol: float = eqx.field(static=True, default=1e-9)
     newton_steps: int = eqx.field(static=True, default=30)
+    condense: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
         if not isinstance(self.harmonics, int) or not 1 <= self.harmonics <= 512:
@@ -116,6 +124,9 @@ class HarmonicBalance(AbstractSteadyMethod):
                 "HarmonicBalance needs a vector field to balance: the exact event-driven laws "
                 "(Restitution, exact Coulomb or Stribeck) have none; use aj.Shooting(), or a "
                 "compliant or smoothed law")
+        condensation = system.condensation() if self.condense else None
+        if condensation is not None:
+            return self._condensed(system, forcing, condensation, x0, cfg, with_floquet)
         H, N = self.harmonics, self.time_samples
         T = forcing.period
         omega = forcing.omega
@@ -132,12 +143,22 @@ class HarmonicBalance(AbstractSteadyMethod):
         def flat(v):
             return field(v.reshape(2 * H + 1, -1)).reshape(-1)
 
-        # the first guess: the last of WARMUP periods integrated from x0 (transients
-        # partly decayed), projected on the harmonics
-        ts = (WARMUP - 1 + jnp.arange(N) / N) * T
-        ys, _ = integrate_flow((system, forcing), x0, WARMUP * T, ts,
-                               cfg=cfg.over_periods(WARMUP))
-        v0 = (P @ jnp.where(jnp.isfinite(ys), ys, 0.0)).reshape(-1)
+        v, status, res, k = self._newton(flat, (P @ _warmed(system, forcing, x0, cfg, N))
+                                         .reshape(-1))
+        c = v.reshape(2 * H + 1, -1)
+        if with_floquet:
+            mult = hill_multipliers(jax.jacfwd(flat)(v), H, omega, T)
+        else:
+            mult = jnp.full((system.num_states,), jnp.nan + 0j)
+        # the orbit's statistics from its series, sampled as shooting's are
+        Ns = SAMPLES_PER_PERIOD
+        Es, _, _ = fourier_matrices(H, Ns)
+        s = (Es @ c) * scale
+        stats, stroke_max = sample_statistics(system, forcing, s, jnp.arange(Ns) * (T / Ns))
+        return steady_of(system, stats, stroke_max, s[0], 1, mult, status, res, k)
+
+    def _newton(self, flat, v0):
+        """Damped Newton on ``flat(v) = 0`` from ``v0``: ``(v, converged, steps)``."""
         alphas = jnp.asarray(STEP_FRACTIONS)
 
         def body(c):
@@ -145,7 +166,7 @@ class HarmonicBalance(AbstractSteadyMethod):
             r, J = flat(v), jax.jacfwd(flat)(v)
             dv = jnp.linalg.lstsq(J, -r)[0]
             res = jnp.max(jnp.abs(r))
-            # damped Newton: the fraction of the step that lowers the residual most
+            # the fraction of the step that lowers the residual most
             trial = jax.vmap(lambda a: jnp.max(jnp.abs(flat(v + a * dv))))(alphas)
             trial = jnp.where(jnp.isfinite(trial), trial, jnp.inf)
             a = alphas[jnp.argmin(trial)]
@@ -158,21 +179,74 @@ class HarmonicBalance(AbstractSteadyMethod):
 
         v, _, ok, k = jax.lax.while_loop(
             cond, body, (v0, jnp.asarray(jnp.inf), jnp.asarray(True), jnp.asarray(0)))
-        r = flat(v)
-        res = jnp.max(jnp.abs(r))
-        status = jnp.where(ok & (res <= self.tol) & jnp.all(jnp.isfinite(v)), Status.SUCCESS,
-                           Status.NO_CONVERGENCE)
-        c = v.reshape(2 * H + 1, -1)
+        res = jnp.max(jnp.abs(flat(v)))
+        good = ok & (res <= self.tol) & jnp.all(jnp.isfinite(v))
+        return v, jnp.where(good, Status.SUCCESS, Status.NO_CONVERGENCE), res, k
+
+    def _condensed(self, system, forcing, cond, x0, cfg, with_floquet):
+        """The orbit from the harmonics of the nonlinear degrees of freedom only (see
+        ``condense``)."""
+        H, N = self.harmonics, self.time_samples
+        T, omega = forcing.period, forcing.omega
+        scale = state_scale(system, forcing)
+        E, P, D = fourier_matrices(H, N)
+        ts = jnp.arange(N) * (T / N)
+        omegas = omega * jnp.arange(H + 1)
+        G, g = jax.vmap(cond.receptances)(omegas)          # (H+1, u, u), (H+1, u)
+        load = to_complex(P @ jax.vmap(forcing)(ts))        # (H+1,)
+        u = cond.size
+        # the length scale of the unknowns: the linear response's largest harmonic there
+        length = jnp.maximum(jnp.max(jnp.abs(g * load[:, None])), 1e-300)
+
+        def predicted(c):
+            x, v = E @ c, E @ (omega * (D @ c))
+            f = to_complex(P @ jax.vmap(cond.forces)(x, v))      # (H+1, u)
+            return f, from_complex(jnp.einsum("kij,kj->ki", G, f) + g * load[:, None])
+
+        def flat(y):
+            c = y.reshape(2 * H + 1, u) * length
+            return (c - predicted(c)[1]).reshape(-1) / length
+
+        xs = jax.vmap(cond.at_dofs)(_warmed(system, forcing, x0, cfg, N) * scale)
+        y, status, res, k = self._newton(flat, (P @ xs / length).reshape(-1))
+        c = y.reshape(2 * H + 1, u) * length
+        f, _ = predicted(c)
+        Q = jax.vmap(cond.coordinates)(omegas, f, load)       # (H+1, n) complex
+        Ns = SAMPLES_PER_PERIOD
+        Es, _, Ds = fourier_matrices(H, Ns)
+        q = Es @ from_complex(Q)
+        qd = Es @ (omega * (Ds @ from_complex(Q)))
+        s = jax.vmap(cond.to_state)(q, qd)
+        x_start = s[0] / scale
         if with_floquet:
-            mult = hill_multipliers(jax.jacfwd(flat)(v), H, omega, T)
+            mult = floquet(system, forcing, x_start, 1, cfg)
         else:
             mult = jnp.full((system.num_states,), jnp.nan + 0j)
-        # the orbit's statistics from its series, sampled as shooting's are
-        Ns = SAMPLES_PER_PERIOD
-        Es, _, _ = fourier_matrices(H, Ns)
-        s = (Es @ c) * scale
         stats, stroke_max = sample_statistics(system, forcing, s, jnp.arange(Ns) * (T / Ns))
         return steady_of(system, stats, stroke_max, s[0], 1, mult, status, res, k)
+
+
+def _warmed(system, forcing, x0, cfg, N):
+    """The first guess of a balance: the scaled states at ``N`` uniform instants of the last
+    of ``WARMUP`` periods integrated from scaled state ``x0`` (transients partly decayed;
+    non-finite values zeroed)."""
+    T = forcing.period
+    ts = (WARMUP - 1 + jnp.arange(N) / N) * T
+    ys, _ = integrate_flow((system, forcing), x0, WARMUP * T, ts, cfg=cfg.over_periods(WARMUP))
+    return jnp.where(jnp.isfinite(ys), ys, 0.0)
+
+
+def to_complex(c):
+    """Real Fourier coefficients ``(2H+1, …)`` (``c₀, a₁, b₁, …``) as complex amplitudes
+    ``(H+1, …)`` of ``e^{ikωt}`` (``x = Re Σ X_k e^{ikωt}``: ``X₀ = c₀``, ``X_k = a_k - i b_k``)."""
+    return jnp.concatenate([c[:1].astype(complex), c[1::2] - 1j * c[2::2]], axis=0)
+
+
+def from_complex(X):
+    """The inverse of ``to_complex``."""
+    H = X.shape[0] - 1
+    ab = jnp.stack([jnp.real(X[1:]), -jnp.imag(X[1:])], axis=1).reshape((2 * H,) + X.shape[1:])
+    return jnp.concatenate([jnp.real(X[:1]), ab], axis=0)
 
 
 def fourier_matrices(H, N):

@@ -102,6 +102,12 @@ class AbstractSystem(eqx.Module):
         impacts)."""
         return False
 
+    def condensation(self):
+        """The linear part and the nonlinear forces that harmonic balance condenses onto the
+        degrees of freedom where the forces act (a ``Condensation``), or ``None`` where the
+        system does not separate so (the default)."""
+        return None
+
     def mode_of(self, t, s, forcing):
         """Integer mode of internal state ``s`` at time ``t`` (hybrid systems only)."""
         raise NotImplementedError

@@ -669,6 +669,13 @@ class StructuralSystem(AbstractSystem):
     def vector_field(self, t, s, forcing):
         return self._rate(s, forcing(t))
 
+    def condensation(self):
+        """A ``Condensation`` where every element is a force law of its degrees of freedom
+        (no states of its own, no exact event-driven law), else ``None``."""
+        if self.hybrid or not self.elements or any(e.num_states for e in self.elements):
+            return None
+        return Condensation(self)
+
     def element_forces(self, s):
         """Force [N] each element applies to its (first) degree of freedom."""
         out = [e.evaluate(xe, ve, z)[0][0]
@@ -848,3 +855,66 @@ class StructuralSystem(AbstractSystem):
         return [f"{nm}.{p}" for nm, e in zip(self.element_names, self.elements)
                 for p in e.parameter_names()]
 
+
+
+class Condensation(eqx.Module):
+    r"""A structure whose nonlinearity is a set of force laws at a few degrees of freedom
+    ``u`` (the elements' degrees of freedom), seen from them:
+
+    $$M\ddot q + C\dot q + K q = \Phi_u^T f(x_u, \dot x_u) + l\,F(t),\qquad x_u = \Phi_u q.$$
+
+    At a harmonic ``Ω = kω`` (complex amplitudes, ``x = Re(X e^{iΩt})``) the linear part is
+    exact: ``Q = Z(Ω)^{-1}(Φ_uᵀ F_f + l F)``, ``Z(Ω) = K - Ω² M + iΩ C``, so
+    ``X_u = G(Ω) F_f + g(Ω) F`` with the receptance ``G = Φ_u Z⁻¹ Φ_uᵀ`` between the
+    nonlinear degrees of freedom and ``g = Φ_u Z⁻¹ l`` the load's response there: harmonic
+    balance needs the harmonics of ``x_u`` only (exact condensation, not a reduction)."""
+
+    system: StructuralSystem
+
+    def forces(self, x, v):
+        """The elements' forces [N] at the degrees of freedom ``u`` (``_used`` order) from
+        displacements ``x`` and velocities ``v`` there."""
+        _, pos = self.system._used()
+        empty = jnp.zeros((0,), jnp.result_type(x))
+        views = [(self.system._pair(x, a, b), self.system._pair(v, a, b), empty)
+                 for a, b in pos]
+        return self.system._forces(views)[0]
+
+    def _solve(self, omega, rhs):
+        st = self.system.structure
+        Z = st.dynamic_stiffness(omega)
+        if self.system.diagonal:
+            return rhs / jnp.diagonal(Z)[:, None]
+        return jnp.linalg.solve(Z, rhs)
+
+    def _map(self):
+        used, _ = self.system._used()
+        return self.system.structure.dof_map[np.asarray(used, dtype=int)]
+
+    def receptances(self, omega):
+        """``(G, g)`` at ``omega`` [rad/s]: ``G`` (u × u) [m/N] between the nonlinear
+        degrees of freedom, ``g`` (u) the response there to a unit load ``F``."""
+        phi = self._map()
+        rhs = jnp.concatenate([phi.T, self.system.coordinate_load()[:, None]],
+                              axis=1).astype(complex)
+        sol = phi @ self._solve(omega, rhs)
+        return sol[:, :-1], sol[:, -1]
+
+    def coordinates(self, omega, f, load):
+        """The coordinates' complex amplitudes ``Q`` at ``omega`` under the element forces'
+        amplitudes ``f`` (at ``u``) and the load's ``load``."""
+        rhs = self._map().T @ f + self.system.coordinate_load() * load
+        return self._solve(omega, rhs[:, None].astype(complex))[:, 0]
+
+    def at_dofs(self, s):
+        """The displacements [m] at the degrees of freedom ``u`` of internal state ``s``."""
+        return self._map() @ s[:self.system.num_coords]
+
+    def to_state(self, q, qd):
+        """The system's internal state from coordinates and their rates."""
+        return jnp.concatenate([q, qd])
+
+    @property
+    def size(self) -> int:
+        """The number of nonlinear degrees of freedom ``u``."""
+        return len(self.system._used()[0])

@@ -24,7 +24,7 @@ def test_one_harmonic_is_exact_on_a_linear_oscillator():
     structure = aj.structure_from_matrices([[m]], [[k]], damping=[[c]], dof_names=["x"])
     system = aj.StructuralSystem(structure, [], load="x")
     ss = aj.steady_state(system, aj.Harmonic(amplitude=F0, omega=omega),
-                         method=aj.HarmonicBalance(harmonics=1, tol=1e-13))
+                         method=aj.HarmonicBalance(harmonics=1, tol=1e-13, condense=False))
     X = F0 / (k - m * omega**2 + 1j * c * omega)
     assert int(ss.status) == 0
     assert abs(float(ss.harmonic) / abs(X) - 1) < 1e-12
@@ -53,7 +53,8 @@ def test_harmonic_balance_converges_exponentially_to_shooting_on_a_duffing_oscil
     errors = []
     for H in Hs:
         ss = aj.steady_state(duffing(), forcing, guess=guess,
-                             method=aj.HarmonicBalance(harmonics=int(H), tol=1e-12))
+                             method=aj.HarmonicBalance(harmonics=int(H), tol=1e-12,
+                                                       condense=False))
         assert int(ss.status) == 0
         errors.append(abs(float(ss.amplitude) / float(ref.amplitude) - 1))
         # Hill's method labels it unstable at every truncation, as Floquet does
@@ -71,7 +72,8 @@ def test_hill_stability_agrees_with_floquet_across_a_duffing_response():
     omegas = np.array([30.0, 40.0, 45.0, 50.0, 60.0])
     a = aj.frequency_response(duffing(), omegas, amplitude=F0, **TIGHT)
     b = aj.frequency_response(duffing(), omegas, amplitude=F0,
-                              method=aj.HarmonicBalance(harmonics=9, tol=1e-12))
+                              method=aj.HarmonicBalance(harmonics=9, tol=1e-12,
+                                                        condense=False))
     assert np.all(np.asarray(a.status) == 0) and np.all(np.asarray(b.status) == 0)
     # the same orbits (both from the linear response: the lower branch past the fold)
     assert np.allclose(np.asarray(b.amplitude), np.asarray(a.amplitude), rtol=1e-6)
@@ -115,3 +117,33 @@ def test_bad_harmonic_balance_input_is_refused():
     with pytest.raises(ValueError, match="event-driven"):
         aj.steady_state(rigid, aj.Harmonic(amplitude=3.0, omega=30.0),
                         method=aj.HarmonicBalance())
+
+
+def beam_with_friction_damper():
+    """A cantilever beam (4 Hermite elements, 8 degrees of freedom) with a friction contact
+    to ground at its tip (Coulomb smoothed at 10 mm/s), loaded at the tip."""
+    beam = aj.cantilever_beam(4, length=1.0, EI=50.0, rho_A=1.0, rayleigh=(1.0, 1e-4))
+    damper = aj.FrictionContact("w4", normal_force=2.0,
+                                friction=aj.Coulomb(mu=0.3, eps=1e-2))
+    return aj.StructuralSystem(beam, [damper], load="w4")
+
+
+def test_condensed_and_full_balances_give_the_same_orbit_on_a_beam_with_a_friction_damper():
+    # the condensed unknowns: the tip's 2H + 1 coefficients; the full: all 16 states'
+    # (whose residual stalls near 1e-9: the beam's stiff modes condition it; the condensed
+    # one reaches 1e-17)
+    system = beam_with_friction_damper()
+    forcing = aj.Harmonic(amplitude=2.0, omega=3.516 * np.sqrt(50.0))    # first mode
+    full = aj.steady_state(system, forcing, method=aj.HarmonicBalance(
+        harmonics=7, tol=1e-8, condense=False))
+    cond = aj.steady_state(system, forcing, method=aj.HarmonicBalance(harmonics=7, tol=1e-12))
+    assert int(full.status) == 0 and int(cond.status) == 0
+    size = np.max(np.abs(np.asarray(full.state)))
+    assert np.max(np.abs(np.asarray(cond.state) - np.asarray(full.state))) < 1e-10 * size
+    assert abs(float(cond.amplitude) / float(full.amplitude) - 1) < 1e-10
+    # stable by Hill's method on the full balance and by the monodromy of the condensed
+    # orbit: the same largest multiplier (0.87440 and 0.87442 at H = 7)
+    assert bool(cond.stable) and bool(full.stable)
+    mu_cond = np.max(np.abs(np.asarray(cond.multipliers)))
+    mu_full = np.max(np.abs(np.asarray(full.multipliers)))
+    assert abs(mu_cond - mu_full) < 1e-4

@@ -1,3 +1,4 @@
+import gc
 import os
 
 import jax
@@ -7,6 +8,33 @@ jax.config.update("jax_enable_x64", True)
 
 # Quick mode for notebooks and scripts executed by the tests.
 os.environ.setdefault("ABSORBER_JAX_QUICK", "1")
+
+
+def _memory_maps():
+    """The number of memory mappings of this process (Linux; 0 elsewhere)."""
+    try:
+        with open("/proc/self/maps") as fh:
+            return sum(1 for _ in fh)
+    except OSError:
+        return 0
+
+
+# Every compiled CPU program keeps memory mappings of its code while it is cached; a pytest
+# worker that compiles hundreds of programs approaches the kernel's limit on mappings
+# (vm.max_map_count, 65530 by default: workers were seen at 58,000), and XLA aborts the
+# process when a mapping then fails (Fatal Python error: Aborted, in the compilation
+# cache's serialisation or deserialisation).  After each test module, a worker past
+# MAX_MAPS drops JAX's in-memory caches; later modules read their programs back from the
+# persistent cache.
+MAX_MAPS = 20_000
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    yield
+    if _memory_maps() > MAX_MAPS:
+        jax.clear_caches()
+        gc.collect()
 
 
 @pytest.fixture(autouse=True)

@@ -177,12 +177,15 @@ def test_a_worker_killed_mid_study_loses_no_chunk(tmp_path):
     np.testing.assert_allclose(res.data["amplitude"].values, local.data["amplitude"].values,
                                rtol=1e-12)
     # the killed worker was in the middle of a chunk: that chunk was started again on the
-    # other worker (13 starts, that one twice); it may also have been logged as finished
-    # by the killed worker in the instant before the kill arrived, but it was written once
+    # other worker (under load the killed worker may have begun a second one in the
+    # instant before the kill, started again too); a chunk restarted may also have been
+    # logged as finished by the killed worker before the kill arrived, but each was
+    # written once (above)
     started = [line.split() for line in log_lines(log + ".start")]
     finished = log_values(log)
-    assert len(started) == 13, started
-    (again,) = [v for v in {v for _, v in started} if [w for _, w in started].count(v) == 2]
-    assert killed in [int(pid) for pid, v in started if v == again]
-    assert sorted(set(finished)) == sorted({v for _, v in started}) and len(set(finished)) == 12
-    assert all(finished.count(v) == 1 for v in finished if v != again)
+    values = [v for _, v in started]
+    again = {v for v in values if values.count(v) >= 2}
+    assert len(started) >= 13 and again, started
+    assert killed in [int(pid) for pid, v in started if v in again]
+    assert sorted(set(finished)) == sorted(set(values)) and len(set(finished)) == 12
+    assert all(finished.count(v) == 1 for v in finished if v not in again)

@@ -35,7 +35,7 @@ from .constants import (
 )
 from .events import _events, _g
 from .problem import _corrector, _defect, _jacobian, _Problem, _scale_at
-from .sequence import event_log, event_rates, sequence_with, solve_sequence
+from .sequence import event_log, sequence_with, solve_sequence
 
 
 class _Driver:
@@ -536,22 +536,28 @@ def _approach(drv, point):
     in ``point`` (a point is asked again while a grazing is bracketed)."""
     if "approach" not in point:
         system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
-        n = int(drv.prob.n)
-        N = GRAZING_SAMPLES * n
-        ts = jnp.linspace(0.0, n * forcing.period, N + 1)
-        cfg = dataclasses.replace(drv.prob.cfg.over_periods(n), rtol=1e-12, atol=1e-12)
-        (pen, rate, acc), impacts = _orbit_kinematics(
-            system, forcing, jnp.asarray(point["x0"]), ts, cfg)
-        length = float(np.max(np.abs(np.asarray(drv.prob.s0))))
-        if int(impacts) != _impacts(point):
+        kinematics, dt, length, impacts = _sampled(drv, system, forcing, point["x0"])
+        if impacts != _impacts(point):
             # the orbit integrated closely impacts where the branch's did not: one of its
             # flights passes through a wall
             g = GRAZING_TOL * length * 1e3
         else:
-            g = _apex(*(np.asarray(a) for a in (pen, rate, acc)), float(ts[1]), length,
-                      length * float(forcing.omega))
+            g = _apex(*kinematics, dt, length, length * float(forcing.omega))
         point["approach"] = (g, length)
     return point["approach"]
+
+
+def _sampled(drv, system, forcing, x0):
+    """The walls' kinematics (``_orbit_kinematics``) of the orbit from internal state ``x0``
+    at ``t = 0`` of ``forcing`` over the branch's response period, ``GRAZING_SAMPLES`` a
+    period at rtol 1e-12: ``((penetrations, rates, accelerations), sample spacing [s],
+    length scale of the motion [m], impacts)``."""
+    n = int(drv.prob.n)
+    ts = jnp.linspace(0.0, n * forcing.period, GRAZING_SAMPLES * n + 1)
+    cfg = dataclasses.replace(drv.prob.cfg.over_periods(n), rtol=1e-12, atol=1e-12)
+    kinematics, impacts = _orbit_kinematics(system, forcing, jnp.asarray(x0), ts, cfg)
+    return (tuple(np.asarray(a) for a in kinematics), float(ts[1]),
+            float(np.max(np.abs(np.asarray(drv.prob.s0)))), int(impacts))
 
 
 def _impacts(point):
@@ -693,14 +699,8 @@ def _grazing_time(drv, point):
     """The time [s] after the section of the highest apex of the free flights of branch
     point ``point``'s orbit (a grazing orbit: where the new impact is born), or None."""
     system, forcing = drv.prob.in_section(jnp.asarray(point["z"][-1]))
-    n = int(drv.prob.n)
-    ts = jnp.linspace(0.0, n * forcing.period, GRAZING_SAMPLES * n + 1)
-    cfg = dataclasses.replace(drv.prob.cfg.over_periods(n), rtol=1e-12, atol=1e-12)
-    (pen, rate, acc), _ = _orbit_kinematics(system, forcing, jnp.asarray(point["xi"]), ts,
-                                            cfg)
-    length = float(np.max(np.abs(np.asarray(drv.prob.s0))))
-    heights, times = _apexes(*(np.asarray(a) for a in (pen, rate, acc)), float(ts[1]),
-                             length, length * float(forcing.omega))
+    kinematics, dt, length, _ = _sampled(drv, system, forcing, point["xi"])
+    heights, times = _apexes(*kinematics, dt, length, length * float(forcing.omega))
     return float(times[np.argmax(heights)]) if heights.size else None
 
 
@@ -733,16 +733,16 @@ def _onto_born(drv, best, direction, e):
         for frac in GRAZING_STEPS:
             p = p_g + side * direction * frac * drv.method.step
             sys_p, forc_p = prob.in_section(jnp.asarray(p))
-            u0 = np.concatenate([best["xi"] / np.asarray(state_scale(sys_p, forc_p)), theta])
-            u, status, _ = solve_sequence(sys_p, forc_p, n, jnp.asarray(u0), jnp.asarray(seg),
-                                          jnp.asarray(active), cfg)
+            sc_p = np.asarray(state_scale(sys_p, forc_p))
+            u, status, _, rates = solve_sequence(sys_p, forc_p, n,
+                                                 jnp.asarray(np.concatenate([best["xi"] / sc_p,
+                                                                             theta])),
+                                                 jnp.asarray(seg), jnp.asarray(active), cfg)
             if int(status) != Status.SUCCESS:
                 continue
-            rates = np.asarray(event_rates(sys_p, forc_p, n, u, jnp.asarray(seg),
-                                           jnp.asarray(active), cfg))
-            if not np.all(rates[active] > 0):
+            if not np.all(np.asarray(rates)[active] > 0):
                 continue            # the new impact would be reached from beyond its wall
-            x = np.asarray(u)[:N] * np.asarray(state_scale(sys_p, forc_p))
+            x = np.asarray(u)[:N] * sc_p
             c = yield (drv, np.append(x / np.asarray(prob.s0), p), e, True)
             if c["ok"] and _impacts(c) == count + 1 and _clear(drv, c):
                 c["t"] = c["t"] * np.sign(c["t"] @ (c["z"] - best["z"]) or 1.0)

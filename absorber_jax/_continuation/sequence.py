@@ -78,9 +78,10 @@ def _flow(system, forcing, scale, x, ta, tb, mode, solver, max_steps):
     return sol.ys[-1], sol.result == diffrax.RESULTS.successful
 
 
-def _residual(u, system, forcing, n, modes, active, solver, max_steps):
-    """The sequence's equations at unknowns ``u = (x₀ scaled, θ)``; and whether every flow
-    succeeded and every jump led into the sequence's next mode."""
+def _residual(u, system, forcing, n, modes, active, solver, max_steps, with_rates=False):
+    """The sequence's equations at unknowns ``u = (x₀ scaled, θ)``; whether every flow
+    succeeded and every jump led into the sequence's next mode; and (``with_rates``, else
+    zeros) each event's switch rate times the response period."""
     scale = state_scale(system, forcing)
     period = n * forcing.period
     N = scale.shape[0]
@@ -93,9 +94,12 @@ def _residual(u, system, forcing, n, modes, active, solver, max_steps):
         x, fine = carry
         ta, tb, mode, next_m, event = seg
         y, ok = _flow(system, forcing, scale, x, ta, tb, mode, solver, max_steps)
-        g, gdot = jax.jvp(lambda t, s: system.switch_function(t, s, forcing, mode),
-                          (tb, y * scale),
-                          (jnp.ones_like(tb), system.mode_rate(tb, y * scale, forcing, mode)))
+        if with_rates:
+            g, gdot = jax.jvp(lambda t, s: system.switch_function(t, s, forcing, mode),
+                              (tb, y * scale), (jnp.ones_like(tb),
+                                                system.mode_rate(tb, y * scale, forcing, mode)))
+        else:
+            g, gdot = system.switch_function(tb, y * scale, forcing, mode), jnp.zeros_like(tb)
         new, jumped = system.next_mode(tb, y * scale, forcing, mode)
         x = jnp.where(event, jumped / scale, y)
         fine = fine & ok & (~event | jnp.all(new == next_m))
@@ -108,27 +112,22 @@ def _residual(u, system, forcing, n, modes, active, solver, max_steps):
 
 
 @eqx.filter_jit
-def event_rates(system, forcing, n, u, modes, active, cfg: Config):
-    """The rate of each event's switching function as the segment reaches it, times the
-    response period (dimensionless; positive: the switch crossed upwards, as the hybrid
-    integration sees it)."""
-    return _residual(u, system, forcing, n, modes, active, cfg.solver, SEGMENT_STEPS)[1][1]
-
-
-@eqx.filter_jit
 def solve_sequence(system, forcing, n, u0, modes, active, cfg: Config):
-    """Newton on the fixed-sequence equations from ``u0``: ``(u, status, residual)``."""
+    """Newton on the fixed-sequence equations from ``u0``: ``(u, status, residual, rates)``,
+    ``rates`` the rate of each event's switching function as its segment reaches it, times
+    the response period (dimensionless; positive: the switch crossed upwards, as the hybrid
+    integration sees it)."""
 
-    def f(u):
-        r, (fine, _) = _residual(u, system, forcing, n, modes, active, cfg.solver,
-                                 SEGMENT_STEPS)
-        return r, (r, fine)
+    def f(u, with_rates=False):
+        r, (fine, gdot) = _residual(u, system, forcing, n, modes, active, cfg.solver,
+                                    SEGMENT_STEPS, with_rates)
+        return r, (r, fine, gdot)
 
     N = u0.shape[0] - active.shape[0]
 
     def body(c):
         u, res_prev, _, k = c
-        J, (r, fine) = jax.jacfwd(f, has_aux=True)(u)
+        J, (r, fine, _) = jax.jacfwd(f, has_aux=True)(u)
         res = jnp.max(jnp.abs(r))
         u_new = u + jnp.linalg.solve(J, -r)
         theta = jnp.concatenate([jnp.zeros(1), u_new[N:], jnp.ones(1)])
@@ -143,11 +142,11 @@ def solve_sequence(system, forcing, n, u0, modes, active, cfg: Config):
 
     u, res, good, _ = jax.lax.while_loop(
         cond, body, (u0, jnp.asarray(jnp.inf), jnp.asarray(True), jnp.asarray(0)))
-    r, fine = f(u)[1]
+    r, fine, rates = f(u, with_rates=True)[1]
     res = jnp.max(jnp.abs(r))
     status = jnp.where(good & fine & (res <= NEWTON_TOL), Status.SUCCESS,
                        Status.NO_CONVERGENCE)
-    return u, status, res
+    return u, status, res, rates
 
 
 def sequence_with(times, modes, t_new, period):

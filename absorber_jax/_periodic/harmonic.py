@@ -146,16 +146,9 @@ class HarmonicBalance(AbstractSteadyMethod):
         v, status, res, k = self._newton(flat, (P @ _warmed(system, forcing, x0, cfg, N))
                                          .reshape(-1))
         c = v.reshape(2 * H + 1, -1)
-        if with_floquet:
-            mult = hill_multipliers(jax.jacfwd(flat)(v), H, omega, T)
-        else:
-            mult = jnp.full((system.num_states,), jnp.nan + 0j)
-        # the orbit's statistics from its series, sampled as shooting's are
-        Ns = SAMPLES_PER_PERIOD
-        Es, _, _ = fourier_matrices(H, Ns)
-        s = (Es @ c) * scale
-        stats, stroke_max = sample_statistics(system, forcing, s, jnp.arange(Ns) * (T / Ns))
-        return steady_of(system, stats, stroke_max, s[0], 1, mult, status, res, k)
+        mult = (hill_multipliers(jax.jacfwd(flat)(v), H, omega, T) if with_floquet
+                else None)
+        return _steady(system, forcing, c * scale, mult, status, res, k)
 
     def _newton(self, flat, v0):
         """Damped Newton on ``flat(v) = 0`` from ``v0``: ``(v, converged, steps)``."""
@@ -163,7 +156,7 @@ class HarmonicBalance(AbstractSteadyMethod):
 
         def body(c):
             v, _, _, k = c
-            r, J = flat(v), jax.jacfwd(flat)(v)
+            J, r = jax.jacfwd(_with_value(flat), has_aux=True)(v)
             dv = jnp.linalg.lstsq(J, -r)[0]
             res = jnp.max(jnp.abs(r))
             # the fraction of the step that lowers the residual most
@@ -192,9 +185,13 @@ class HarmonicBalance(AbstractSteadyMethod):
         E, P, D = fourier_matrices(H, N)
         ts = jnp.arange(N) * (T / N)
         omegas = omega * jnp.arange(H + 1)
-        G, g = jax.vmap(cond.receptances)(omegas)          # (H+1, u, u), (H+1, u)
-        load = to_complex(P @ jax.vmap(forcing)(ts))        # (H+1,)
+        # each harmonic's coordinate responses to unit forces at u and to the load, and
+        # what u sees of them: the receptances G (H+1, u, u) and the load's g (H+1, u)
+        S = jax.vmap(cond.responses)(omegas)                # (H+1, n, u+1)
         u = cond.size
+        seen = jax.vmap(cond.at_dofs)(S)
+        G, g = seen[:, :, :u], seen[:, :, u]
+        load = to_complex(P @ jax.vmap(forcing)(ts))        # (H+1,)
         # the length scale of the unknowns: the linear response's largest harmonic there
         length = jnp.maximum(jnp.max(jnp.abs(g * load[:, None])), 1e-300)
 
@@ -211,19 +208,37 @@ class HarmonicBalance(AbstractSteadyMethod):
         y, status, res, k = self._newton(flat, (P @ xs / length).reshape(-1))
         c = y.reshape(2 * H + 1, u) * length
         f, _ = predicted(c)
-        Q = jax.vmap(cond.coordinates)(omegas, f, load)       # (H+1, n) complex
-        Ns = SAMPLES_PER_PERIOD
-        Es, _, Ds = fourier_matrices(H, Ns)
-        q = Es @ from_complex(Q)
-        qd = Es @ (omega * (Ds @ from_complex(Q)))
-        s = jax.vmap(cond.to_state)(q, qd)
-        x_start = s[0] / scale
-        if with_floquet:
-            mult = floquet(system, forcing, x_start, 1, cfg)
-        else:
-            mult = jnp.full((system.num_states,), jnp.nan + 0j)
-        stats, stroke_max = sample_statistics(system, forcing, s, jnp.arange(Ns) * (T / Ns))
-        return steady_of(system, stats, stroke_max, s[0], 1, mult, status, res, k)
+        Q = jnp.einsum("kij,kj->ki", S[:, :, :u], f) + S[:, :, u] * load[:, None]
+        Qc = from_complex(Q)                                  # (2H+1, n)
+        states = jax.vmap(cond.to_state)(Qc, omega * (D @ Qc))   # the state's coefficients
+        mult = (floquet(system, forcing, (E[0] @ states) / scale, 1, cfg) if with_floquet
+                else None)
+        return _steady(system, forcing, states, mult, status, res, k)
+
+
+def _with_value(fn):
+    """``fn`` returning its value twice: as output and as ``has_aux`` auxiliary (its value
+    and Jacobian from one evaluation under ``jax.jacfwd``)."""
+    def both(v):
+        r = fn(v)
+        return r, r
+
+    return both
+
+
+def _steady(system, forcing, coefficients, mult, status, residual, iterations):
+    """The ``SteadyState`` of the orbit whose internal state has the real Fourier
+    ``coefficients`` ``(2H+1, states)``: its statistics from the series sampled as
+    shooting's are (``SAMPLES_PER_PERIOD`` a period), ``mult`` its multipliers (None: not
+    computed)."""
+    H = (coefficients.shape[0] - 1) // 2
+    Ns = SAMPLES_PER_PERIOD
+    s = fourier_matrices(H, Ns)[0] @ coefficients
+    if mult is None:
+        mult = jnp.full((system.num_states,), jnp.nan + 0j)
+    stats, stroke_max = sample_statistics(system, forcing, s,
+                                          jnp.arange(Ns) * (forcing.period / Ns))
+    return steady_of(system, stats, stroke_max, s[0], 1, mult, status, residual, iterations)
 
 
 def _warmed(system, forcing, x0, cfg, N):

@@ -864,7 +864,7 @@ class Condensation(eqx.Module):
     $$M\ddot q + C\dot q + K q = \Phi_u^T f(x_u, \dot x_u) + l\,F(t),\qquad x_u = \Phi_u q.$$
 
     At a harmonic ``Ω = kω`` (complex amplitudes, ``x = Re(X e^{iΩt})``) the linear part is
-    exact: ``Q = Z(Ω)^{-1}(Φ_uᵀ F_f + l F)``, ``Z(Ω) = K - Ω² M + iΩ C``, so
+    exact: ``Q = Z(Ω)^{-1}(Φ_uᵀ F_f + l F)`` (``responses``), ``Z(Ω) = K - Ω² M + iΩ C``, so
     ``X_u = G(Ω) F_f + g(Ω) F`` with the receptance ``G = Φ_u Z⁻¹ Φ_uᵀ`` between the
     nonlinear degrees of freedom and ``g = Φ_u Z⁻¹ l`` the load's response there: harmonic
     balance needs the harmonics of ``x_u`` only (exact condensation, not a reduction)."""
@@ -891,23 +891,17 @@ class Condensation(eqx.Module):
         used, _ = self.system._used()
         return self.system.structure.dof_map[np.asarray(used, dtype=int)]
 
-    def receptances(self, omega):
-        """``(G, g)`` at ``omega`` [rad/s]: ``G`` (u × u) [m/N] between the nonlinear
-        degrees of freedom, ``g`` (u) the response there to a unit load ``F``."""
-        phi = self._map()
-        rhs = jnp.concatenate([phi.T, self.system.coordinate_load()[:, None]],
+    def responses(self, omega):
+        """The coordinates' complex amplitudes at ``omega`` [rad/s] under unit forces at
+        each degree of freedom of ``u`` and under a unit load ``F``: ``Z⁻¹ [Φ_uᵀ, l]``
+        ``(n_coords, u + 1)``; ``at_dofs`` of it gives the receptances ``G`` and ``g``."""
+        rhs = jnp.concatenate([self._map().T, self.system.coordinate_load()[:, None]],
                               axis=1).astype(complex)
-        sol = phi @ self._solve(omega, rhs)
-        return sol[:, :-1], sol[:, -1]
-
-    def coordinates(self, omega, f, load):
-        """The coordinates' complex amplitudes ``Q`` at ``omega`` under the element forces'
-        amplitudes ``f`` (at ``u``) and the load's ``load``."""
-        rhs = self._map().T @ f + self.system.coordinate_load() * load
-        return self._solve(omega, rhs[:, None].astype(complex))[:, 0]
+        return self._solve(omega, rhs)
 
     def at_dofs(self, s):
-        """The displacements [m] at the degrees of freedom ``u`` of internal state ``s``."""
+        """The displacements at the degrees of freedom ``u`` of internal state ``s``, or of
+        coordinate amplitudes ``s`` ``(n_coords, …)``: ``Φ_u s[:n_coords]``."""
         return self._map() @ s[:self.system.num_coords]
 
     def to_state(self, q, qd):

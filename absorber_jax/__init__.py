@@ -35,6 +35,7 @@ from ._design.robust import Coexisting, RobustPeak, robust_peak  # noqa: E402
 from ._design.tune import plot_tuning, tune, value_and_grad  # noqa: E402
 from ._integration.settings import Integrator  # noqa: E402
 from ._integration.simulate import REGIME_NAMES, SOLVERS, Trajectory, choose_solver, simulate  # noqa: E402
+from ._io.matrices import read_matrix  # noqa: E402
 from ._io.plots import plot_bifurcation_diagram, plot_branches, plot_frequency_response  # noqa: E402
 from ._laws.contact import (  # noqa: E402
     AbstractCompliantLaw,
@@ -92,9 +93,11 @@ from ._systems.forcing import (  # noqa: E402
 )
 from ._systems.linear import linear_guess  # noqa: E402
 from ._systems.params import get_param, parameter_names, replace_params  # noqa: E402
+from ._systems.reduction import craig_bampton  # noqa: E402
 from ._systems.structural import BaseExcitation, StructuralSystem  # noqa: E402
 from ._systems.structure import (  # noqa: E402
     LinearStructure,
+    beam_matrices,
     cantilever_beam,
     shear_building,
     structure_from_matrices,
@@ -114,7 +117,8 @@ __all__ = [
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
     "band_objective", "smooth_max", "plot_tuning", "BandPeak", "exact_peak",
     "Coexisting", "RobustPeak", "robust_peak",
-    "LinearStructure", "cantilever_beam", "shear_building", "structure_from_matrices",
+    "LinearStructure", "beam_matrices", "cantilever_beam", "craig_bampton", "read_matrix",
+    "shear_building", "structure_from_matrices",
     "structure_from_modes", "AbstractSystem", "StructuralSystem", "AbstractElement", "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
     "Attractor", "AttractorMap", "attractors", "bifurcation_diagram", "plot_bifurcation_diagram",

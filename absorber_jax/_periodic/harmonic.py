@@ -76,8 +76,11 @@ class HarmonicBalance(AbstractSteadyMethod):
       orbit's state (Hill's method needs the full balance).  ``False``: balance the whole
       state.
 
-    The first guess is the method's own start (the system's linear response) or the state a
-    caller gives, integrated over ``WARMUP`` periods, the last projected on the harmonics;
+    The first guess of the full balance is the method's own start (the system's linear
+    response) or the state a caller gives, integrated over ``WARMUP`` periods, the last
+    projected on the harmonics; that of the condensed balance is the structure's response
+    without its elements' forces, in the frequency domain (no integration, so no step set
+    by the structure's stiffest mode);
     Newton's steps are damped (the fraction of ``STEP_FRACTIONS`` with the least residual).
     Smooth laws only: exact event-driven laws (``Restitution``, exact Coulomb or Stribeck)
     are refused.
@@ -204,8 +207,10 @@ class HarmonicBalance(AbstractSteadyMethod):
             c = y.reshape(2 * H + 1, u) * length
             return (c - predicted(c)[1]).reshape(-1) / length
 
-        xs = jax.vmap(cond.at_dofs)(_warmed(system, forcing, x0, cfg, N) * scale)
-        y, status, res, k = self._newton(flat, (P @ xs / length).reshape(-1))
+        # first guess: the structure's response without its elements' forces (frequency
+        # domain: no integration, whose step the structure's stiffest mode would set)
+        y0 = from_complex(g * load[:, None]) / length
+        y, status, res, k = self._newton(flat, y0.reshape(-1))
         c = y.reshape(2 * H + 1, u) * length
         f, _ = predicted(c)
         Q = jnp.einsum("kij,kj->ki", S[:, :, :u], f) + S[:, :, u] * load[:, None]

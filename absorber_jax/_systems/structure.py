@@ -27,11 +27,18 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import scipy.sparse as sp
 
 from .._core.checks import as_float, check_scalar
 
+# models up to this many degrees of freedom may be given as sparse matrices to
+# ``structure_from_matrices`` (converted to dense); larger ones are reduced first
+# (``craig_bampton``)
+DENSE_LIMIT = 4000
+
 
 def _matrix(owner, name, a, shape=None):
+    a = dense_if_small(owner, name, a)
     try:
         arr = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as e:
@@ -42,6 +49,19 @@ def _matrix(owner, name, a, shape=None):
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{owner}.{name} must be finite")
     return arr
+
+
+def dense_if_small(owner, name, a):
+    """A scipy sparse matrix of at most ``DENSE_LIMIT`` rows as a dense array (ValueError
+    pointing to ``craig_bampton`` for larger ones); other inputs unchanged."""
+    if not sp.issparse(a):
+        return a
+    if a.shape[0] > DENSE_LIMIT:
+        raise ValueError(f"{owner}.{name}: a sparse matrix of size {a.shape[0]} is too large "
+                         f"for a dense model (at most {DENSE_LIMIT}); reduce it with "
+                         "aj.craig_bampton onto the degrees of freedom the elements and loads "
+                         "use")
+    return a.toarray()
 
 
 def _symmetric(owner, name, a, *, definite):
@@ -331,11 +351,23 @@ def cantilever_beam(n_elements, *, length, EI, rho_A, damping=None, rayleigh=Non
     [kg/m].  Degrees of freedom ``w1, th1, …, wN, thN`` (deflection [m] and slope [rad] at
     the nodes, the clamp removed; ``wN`` is the tip); damping as in
     [`structure_from_matrices`][absorber_jax.structure_from_matrices]."""
+    M, K, names = beam_matrices(n_elements, length=length, EI=EI, rho_A=rho_A)
+    return structure_from_matrices(M.toarray(), K.toarray(), damping=damping,
+                                   rayleigh=rayleigh, modal_damping=modal_damping,
+                                   dof_names=names)
+
+
+def beam_matrices(n_elements, *, length, EI, rho_A):
+    """The sparse mass and stiffness matrices [kg, N/m] of a clamped-free Euler–Bernoulli
+    beam by cubic Hermite elements with consistent mass (the clamp's two degrees of freedom
+    removed), and the names of the degrees of freedom ``w1, th1, …, wN, thN`` (deflection
+    [m], slope [rad]; ``wN`` is the tip): ``(M, K, names)``, ``M`` and ``K`` scipy CSR
+    matrices of size ``2 n_elements``.  ``cantilever_beam`` builds its structure from them."""
     if not isinstance(n_elements, int) or n_elements < 1:
-        raise ValueError(f"cantilever_beam.n_elements must be a positive integer, got "
-                         f"{n_elements!r}")
+        raise ValueError(f"beam.n_elements must be a positive integer, got {n_elements!r}")
     for name, v in (("length", length), ("EI", EI), ("rho_A", rho_A)):
-        check_scalar("cantilever_beam", name, v, lo=0.0, lo_open=True)
+        if not np.isfinite(float(v)) or float(v) <= 0:
+            raise ValueError(f"beam.{name} must be positive and finite, got {v!r}")
     h = float(length) / n_elements
     ke = float(EI) / h**3 * np.array([[12, 6 * h, -12, 6 * h],
                                       [6 * h, 4 * h * h, -6 * h, 2 * h * h],
@@ -345,12 +377,14 @@ def cantilever_beam(n_elements, *, length, EI, rho_A, damping=None, rayleigh=Non
                                             [22 * h, 4 * h * h, 13 * h, -3 * h * h],
                                             [54, 13 * h, 156, -22 * h],
                                             [-13 * h, -3 * h * h, -22 * h, 4 * h * h]])
+    idx = 2 * np.arange(n_elements)[:, None] + np.arange(4)          # (elements, 4)
+    rows = np.repeat(idx, 4, axis=1).reshape(-1)
+    cols = np.tile(idx, (1, 4)).reshape(-1)
     nd = 2 * (n_elements + 1)
-    K, M = np.zeros((nd, nd)), np.zeros((nd, nd))
-    for e in range(n_elements):
-        s = slice(2 * e, 2 * e + 4)
-        K[s, s] += ke
-        M[s, s] += me
+
+    def assemble(e):
+        A = sp.coo_matrix((np.tile(e.reshape(-1), n_elements), (rows, cols)), shape=(nd, nd))
+        return A.tocsr()[2:, 2:]
+
     names = [f"{q}{i}" for i in range(1, n_elements + 1) for q in ("w", "th")]
-    return structure_from_matrices(M[2:, 2:], K[2:, 2:], damping=damping, rayleigh=rayleigh,
-                                   modal_damping=modal_damping, dof_names=names)
+    return assemble(me), assemble(ke), names

@@ -59,6 +59,7 @@ from ._periodic.attractors import Attractor, AttractorMap, attractors, bifurcati
 from ._periodic.base import AbstractSteadyMethod  # noqa: E402
 from ._periodic.harmonic import HarmonicBalance  # noqa: E402
 from ._periodic.marching import Marching  # noqa: E402
+from ._periodic.modes import NonlinearModes, nonlinear_modes  # noqa: E402
 from ._periodic.shooting import Shooting  # noqa: E402
 from ._periodic.steady import SteadyState, solve_point, steady_state  # noqa: E402
 from ._periodic.sweep import FrequencyResponse, frequency_response  # noqa: E402
@@ -112,7 +113,7 @@ __all__ = [
     "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
     "FrequencyResponse", "SteadyState", "frequency_response", "Shooting", "Marching",
-    "HarmonicBalance",
+    "HarmonicBalance", "NonlinearModes", "nonlinear_modes",
     "AbstractSteadyMethod", "solve_point", "get_param", "linear_guess",
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
     "band_objective", "smooth_max", "plot_tuning", "BandPeak", "exact_peak",

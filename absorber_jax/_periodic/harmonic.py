@@ -128,7 +128,7 @@ class HarmonicBalance(AbstractSteadyMethod):
                 "(Restitution, exact Coulomb or Stribeck) have none; use aj.Shooting(), or a "
                 "compliant or smoothed law")
         condensation = system.condensation() if self.condense else None
-        if condensation is not None:
+        if condensation is not None and condensation.size:
             return self._condensed(system, forcing, condensation, x0, cfg, with_floquet)
         H, N = self.harmonics, self.time_samples
         T = forcing.period

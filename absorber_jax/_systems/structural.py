@@ -671,8 +671,9 @@ class StructuralSystem(AbstractSystem):
 
     def condensation(self):
         """A ``Condensation`` where every element is a force law of its degrees of freedom
-        (no states of its own, no exact event-driven law), else ``None``."""
-        if self.hybrid or not self.elements or any(e.num_states for e in self.elements):
+        (no states of its own, no exact event-driven law; none at all on a linear
+        structure), else ``None``."""
+        if self.hybrid or any(e.num_states for e in self.elements):
             return None
         return Condensation(self)
 
@@ -890,6 +891,12 @@ class Condensation(eqx.Module):
     def _map(self):
         used, _ = self.system._used()
         return self.system.structure.dof_map[np.asarray(used, dtype=int)]
+
+    @property
+    def dof_map(self):
+        """``Φ_u`` ``(u, n_coords)``: the rows of the structure's output map at the degrees of
+        freedom ``u``."""
+        return self._map()
 
     def responses(self, omega):
         """The coordinates' complex amplitudes at ``omega`` [rad/s] under unit forces at

@@ -154,11 +154,17 @@ class HarmonicBalance(AbstractSteadyMethod):
         return _steady(system, forcing, c * scale, mult, status, res, k)
 
     def _newton(self, flat, v0):
-        """Damped Newton on ``flat(v) = 0`` from ``v0``: ``(v, converged, steps)``."""
+        """Damped Newton on ``flat(v) = 0`` from ``v0``: ``(v, status, residual, steps)``.
+
+        Differentiable (forward mode) by the implicit function theorem: the converged
+        ``v*`` enters one more step with the last Jacobian held constant,
+        ``v = v* - J⁺ R(v*)``, whose value is a chord step (``R(v*) ≈ 0``) and whose tangent
+        with respect to anything ``flat`` closes over is ``-J⁺ ∂R/∂θ``: the derivative of
+        the orbit, not of the iterations."""
         alphas = jnp.asarray(STEP_FRACTIONS)
 
         def body(c):
-            v, _, _, k = c
+            v, _, _, k, _ = c
             J, r = jax.jacfwd(_with_value(flat), has_aux=True)(v)
             dv = jnp.linalg.lstsq(J, -r)[0]
             res = jnp.max(jnp.abs(r))
@@ -167,14 +173,19 @@ class HarmonicBalance(AbstractSteadyMethod):
             trial = jnp.where(jnp.isfinite(trial), trial, jnp.inf)
             a = alphas[jnp.argmin(trial)]
             ok = jnp.all(jnp.isfinite(dv)) & jnp.isfinite(jnp.min(trial))
-            return jnp.where(ok, v + a * dv, v), res, ok, k + 1
+            return jnp.where(ok, v + a * dv, v), res, ok, k + 1, J
 
         def cond(c):
-            _, res, ok, k = c
+            _, res, ok, k, _ = c
             return ok & (res > self.tol) & (k < self.newton_steps)
 
-        v, _, ok, k = jax.lax.while_loop(
-            cond, body, (v0, jnp.asarray(jnp.inf), jnp.asarray(True), jnp.asarray(0)))
+        n = v0.shape[0]
+        v, _, ok, k, J = jax.lax.while_loop(
+            cond, body, (v0, jnp.asarray(jnp.inf), jnp.asarray(True), jnp.asarray(0),
+                         jnp.zeros((n, n), v0.dtype)))
+        v, J = jax.lax.stop_gradient(v), jax.lax.stop_gradient(J)
+        step = jnp.linalg.lstsq(J, -flat(v))[0]
+        v = jnp.where(jnp.all(jnp.isfinite(step)), v + step, v)
         res = jnp.max(jnp.abs(flat(v)))
         good = ok & (res <= self.tol) & jnp.all(jnp.isfinite(v))
         return v, jnp.where(good, Status.SUCCESS, Status.NO_CONVERGENCE), res, k

@@ -3,6 +3,8 @@ receptance and Floquet exponents), converging to tightly converged shooting as t
 grow (exponentially on a Duffing oscillator, algebraically on a clearance contact), and its
 Hill stability against shooting's Floquet multipliers on a stable and an unstable orbit."""
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from builders import TIGHT, CubicSpring
@@ -188,3 +190,31 @@ def test_the_friction_damped_beam_of_nlvib_example_08_peaks_where_nlvib_reports(
     assert abs(rms[2] / float(ref.rms) - 1) < 1.5e-3
     assert abs(float(ref.rms) / NLVIB08_PEAK - 1) < 5e-4
     assert abs(rms[2] / NLVIB08_PEAK - 1) < 1.5e-3
+
+
+def test_harmonic_balance_orbits_differentiate_implicitly_as_central_differences():
+    # the full balance (Duffing, d amplitude / d k3) and the condensed one (the beam's
+    # friction contact, d rms / d normal force and d rms / d mu): forward mode through the
+    # implicit function theorem against central differences (measured 4e-11, 5e-13, 2e-12)
+    def duffing_amplitude(k3):
+        s = aj.replace_params(duffing(), {"cubic1.k3": k3})
+        return aj.steady_state(s, aj.Harmonic(amplitude=F0, omega=45.0), floquet=False,
+                               method=aj.HarmonicBalance(harmonics=9, tol=1e-12)).amplitude
+
+    def beam_rms(p):
+        s = aj.replace_params(beam_with_friction_damper(),
+                              {"friction_contact1.normal_force": p[0],
+                               "friction_contact1.mu": p[1]})
+        forcing = aj.Harmonic(amplitude=2.0, omega=3.516 * np.sqrt(50.0))
+        return aj.steady_state(s, forcing, floquet=False,
+                               method=aj.HarmonicBalance(harmonics=7, tol=1e-12)).rms
+
+    g = float(jax.jacfwd(duffing_amplitude)(1e6))
+    fd = float(duffing_amplitude(1e6 + 1e2) - duffing_amplitude(1e6 - 1e2)) / 2e2
+    assert abs(g / fd - 1) < 1e-6
+    p = jnp.array([2.0, 0.3])
+    g = np.asarray(jax.jacfwd(beam_rms)(p))
+    for i, h in enumerate((1e-4, 1e-5)):
+        e = jnp.zeros(2).at[i].set(h)
+        fd = float(beam_rms(p + e) - beam_rms(p - e)) / (2 * h)
+        assert abs(g[i] / fd - 1) < 1e-6

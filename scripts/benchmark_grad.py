@@ -31,7 +31,8 @@ def main(repeats):
 
     @jax.jit
     def forward(system):
-        a, _, st, _ = _base.band_amplitudes(system, om, amp, guesses, cfg, 1e-7, 40)
+        a, _, st, _ = _base.band_amplitudes(system, om, amp, guesses, cfg,
+                                            _base.shooting_for_design(1e-7, 40))
         return _base.band_objective(a, "peak"), st
 
     reparam = _base.Reparam(lo=jnp.zeros(3), hi=jnp.ones(3), bounded=jnp.zeros(3, bool),
@@ -39,8 +40,8 @@ def main(repeats):
     u = jnp.log(jnp.array([float(aj.get_param(system, k)) for k in names]))
 
     def vg():
-        return _design._value_and_jac(system, names, reparam, u, om, amp, guesses, cfg, 1e-7, 40,
-                                      "peak", 2e-3)
+        return _design._value_and_jac(system, names, reparam, u, om, amp, guesses, cfg,
+                                      _base.shooting_for_design(1e-7, 40), "peak", 2e-3)
 
     def timed(f):
         jax.block_until_ready(f())  # compile

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.legacy import moved
+from .._periodic.harmonic import HarmonicBalance
 from .._periodic.shooting import Shooting
 from .._periodic.steady import method_from, solve_point
 from .._systems.forcing import Harmonic
@@ -87,10 +88,10 @@ class Reparam(eqx.Module):
         return jnp.where(self.identity, p, u)
 
 
-def band_amplitudes(system, omegas, amplitude, guesses, cfg, tol, newton_steps):
-    """Steady primary amplitudes at ``omegas`` (vmapped shooting, differentiable in forward
-    mode). ``guesses``: internal states (NaN: use the linear guess)."""
-    method = shooting_for_design(tol, newton_steps)
+def band_amplitudes(system, omegas, amplitude, guesses, cfg, method):
+    """Steady primary amplitudes at ``omegas`` (vmapped ``method``: the design's shooting, or
+    a ``HarmonicBalance``; differentiable in forward mode, implicitly through each orbit
+    solve). ``guesses``: internal states (NaN: use the linear guess)."""
 
     def one(w, g):
         forcing = Harmonic(amplitude=amplitude, omega=w)
@@ -117,16 +118,20 @@ def legacy_objective(obj, where, legacy, options=("n_freq", "softness", "peaks",
     return dataclasses.replace(obj, **{k: v for k, v in values.items() if k in names})
 
 
-def design_method(method, where, legacy, default_tol=1e-7):
+def design_method(method, where, legacy, default_tol=1e-7, balance=False):
     """The ``Shooting`` of a design entry point: ``method`` (default
     ``Shooting(tol=default_tol, newton_steps=40)``), with the deprecated keywords ``tol`` and
-    ``newton_steps`` popped from ``legacy`` (``method_from``: a warning names the new form)."""
+    ``newton_steps`` popped from ``legacy`` (``method_from``: a warning names the new form);
+    a ``HarmonicBalance`` too where ``balance``."""
     options = {k: legacy.pop(k) for k in ("tol", "newton_steps") if k in legacy}
     method = method_from(method, where, options,
                          default=Shooting(tol=default_tol, newton_steps=40))
+    if isinstance(method, HarmonicBalance) and balance:
+        return method
     if not isinstance(method, Shooting):
-        raise ValueError(f"{where}.method must be an aj.Shooting(...): design solves orbits by "
-                         f"shooting (gradients by implicit differentiation), got "
+        also = " or an aj.HarmonicBalance(...)" if balance else ""
+        raise ValueError(f"{where}.method must be an aj.Shooting(...){also}: design "
+                         f"differentiates orbits implicitly through their solve, got "
                          f"{type(method).__name__}")
     return method
 

@@ -38,6 +38,7 @@ from .._core.legacy import moved, no_more
 from .._core.status import Status
 from .._integration.settings import Integrator, integrator_from
 from .._periodic.attractors import attractors
+from .._periodic.harmonic import HarmonicBalance
 from .._periodic.marching import Marching
 from .._periodic.shooting import Shooting
 from .._periodic.steady import make_config, steady_state
@@ -51,6 +52,7 @@ from .base import (
     check_design,
     design_method,
     legacy_objective,
+    shooting_for_design,
 )
 from .objectives import SmoothPeak, as_objective
 from .peak import design_system, evaluate_points, exact_peak_of, peak_core
@@ -59,24 +61,20 @@ from .robust import robust_peak_of, stable_responses
 _TRACES = {"tune_step": 0}
 
 
-def _amplitudes_fn(system, names, reparam, omegas, amplitude, guesses, cfg, tol,
-                   newton_steps):
+def _amplitudes_fn(system, names, reparam, omegas, amplitude, guesses, cfg, method):
     def f(u):
         p = reparam.forward(u)
         sysp = replace_params(system, dict(zip(names, p)), check=False)
-        amps, states, status, _ = band_amplitudes(sysp, omegas, amplitude, guesses, cfg, tol,
-                                                  newton_steps)
+        amps, states, status, _ = band_amplitudes(sysp, omegas, amplitude, guesses, cfg, method)
         return amps, (amps, states, status)
 
     return f
 
 
 @eqx.filter_jit
-def _amplitudes_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol,
-                        newton_steps):
+def _amplitudes_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg, method):
     _TRACES["tune_step"] += 1  # runs only when traced: counts compilations
-    f = _amplitudes_fn(system, names, reparam, omegas, amplitude, guesses, cfg, tol,
-                       newton_steps)
+    f = _amplitudes_fn(system, names, reparam, omegas, amplitude, guesses, cfg, method)
     # forward mode: one tangent per parameter, the Jacobian of every band amplitude
     jac, aux = jax.jacfwd(f, has_aux=True)(u)
     return jac, aux
@@ -88,13 +86,13 @@ def _objective_and_grad(amps, jac, objective, softness):
     return val, g @ jac
 
 
-def _value_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg, tol, newton_steps,
+def _value_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg, method,
                    objective, softness):
     """The band objective and its gradient in ``u``: the amplitudes and their Jacobian in one
     compiled program (whatever the objective: every objective and softness shares it), the
     objective applied after it by the chain rule."""
     jac, aux = _amplitudes_and_jac(system, names, reparam, u, omegas, amplitude, guesses, cfg,
-                                   tol, newton_steps)
+                                   method)
     val, g = _objective_and_grad(aux[0], jac, objective, softness)
     return val, g, aux
 
@@ -108,14 +106,15 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
     ``objective``: ``objectives.SmoothPeak()`` (default) or ``MeanSquare()`` of the grid
     amplitudes (implicit differentiation through each orbit solve), or ``ExactPeak()`` /
     ``RobustPeak()`` over the grid's band (their ``n_freq`` is the grid's size); ``method``:
-    the ``Shooting`` of each orbit (default ``Shooting(tol=1e-7, newton_steps=40)``);
+    the ``Shooting`` of each orbit (default ``Shooting(tol=1e-7, newton_steps=40)``), or a
+    ``HarmonicBalance`` for the grid objectives (its orbits differentiated implicitly too);
     ``integrator``: default the design tolerances (1e-10).
 
     Returns ``(value, {name: dvalue/dname}, status per frequency)``."""
     obj = SmoothPeak() if objective is None else (
         SmoothPeak() if objective == "amplitude" else as_objective(objective, "value_and_grad"))
     obj = legacy_objective(obj, "value_and_grad", legacy, options=("softness",))
-    method = design_method(method, "value_and_grad", legacy)
+    method = design_method(method, "value_and_grad", legacy, balance=True)
     integ = integrator_from(integrator, "design", "value_and_grad", legacy,
                             fields=("solver", "rtol", "atol", "max_steps"))
     no_more("value_and_grad", legacy)
@@ -123,6 +122,12 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
     tol, newton_steps = method.tol, method.newton_steps
     rtol, atol, solver = integ.rtol, integ.atol, integ.solver
     names, omegas = check_design(system, params, omegas, objective)
+    solver_of_orbits = (method if isinstance(method, HarmonicBalance)
+                        else shooting_for_design(tol, newton_steps))
+    if objective in ("exact_peak", "robust_peak") and isinstance(method, HarmonicBalance):
+        raise ValueError(f"value_and_grad: objective {objective!r} follows its peaks by "
+                         "shooting; give method=aj.Shooting(...), or a grid objective "
+                         "(SmoothPeak, MeanSquare) with HarmonicBalance")
     if objective in ("exact_peak", "robust_peak"):
         if omegas.size < 3:
             raise ValueError(f"objective {objective!r} needs a grid of >= 3 frequencies")
@@ -145,7 +150,7 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
     guesses = jnp.full((len(omegas), system.num_states), jnp.nan, dtype=jnp.float64)
     val, g, (amps, _, status) = _value_and_jac(system, names, ident, jnp.log(p0),
                                                jnp.asarray(omegas), jnp.asarray(amplitude, float),
-                                               guesses, cfg, tol, newton_steps, objective,
+                                               guesses, cfg, solver_of_orbits, objective,
                                                softness)
     grads = {k: float(g[i] / p0[i]) for i, k in enumerate(names)}  # d/dlog p -> d/dp
     return float(val), grads, np.asarray(status)
@@ -501,8 +506,9 @@ class _Evaluator:
             return (out, out["grid_amplitude"][:F], out["grid_states"][:F],
                     out["grid_status"][:F])
         val, g, (amps, states, status) = _value_and_jac(
-            system, names, reparam, u, om, amp, guesses, self.cfg, self.tol,
-            self.newton_steps, self.objective, self.softness)
+            system, names, reparam, u, om, amp, guesses, self.cfg,
+            shooting_for_design(float(self.tol), int(self.newton_steps)), self.objective,
+            self.softness)
         return ((float(val), np.asarray(g)), np.asarray(amps), np.asarray(states),
                 np.asarray(status))
 

@@ -204,3 +204,43 @@ def test_gradients_stay_finite_through_grazing_and_stick_slip():
         val, g, status = aj.value_and_grad(aj.replace_params(fr, {"N": N}), ["N", "k2"], [95.0],
                                            amplitude=10.0, objective="amplitude")
         assert status[0] == 0 and np.isfinite(val) and all(np.isfinite(v) for v in g.values())
+
+
+def test_harmonic_balance_gives_design_gradients_of_a_friction_damped_beam():
+    """``value_and_grad`` with ``method=HarmonicBalance``: on a linear tuned-mass-damper
+    scene it equals shooting's value and gradient; on a beam with a smoothed friction
+    contact (condensed balance) its gradient in the normal force and the friction
+    coefficient equals central differences of its value."""
+    st = aj.structure_from_matrices([[1.0]], [[1e3]], damping=[[1.0]], dof_names=["x1"])
+    tmd = aj.StructuralSystem(st, [aj.TunedMassDamper("x1", m=0.05, k=45.0, c=0.3)],
+                              load="x1")
+    om = np.linspace(25.0, 38.0, 8)
+    v_s, g_s, _ = aj.value_and_grad(tmd, ["tmd1.k", "tmd1.c"], om, amplitude=1.0,
+                                    method=aj.Shooting(tol=1e-9))
+    v_h, g_h, status = aj.value_and_grad(tmd, ["tmd1.k", "tmd1.c"], om, amplitude=1.0,
+                                         method=aj.HarmonicBalance(harmonics=1, tol=1e-12))
+    assert np.all(status == 0) and abs(v_h / v_s - 1) < 1e-7
+    for k in g_s:
+        assert abs(g_h[k] / g_s[k] - 1) < 1e-6
+
+    beam = aj.cantilever_beam(4, length=1.0, EI=50.0, rho_A=1.0, rayleigh=(1.0, 1e-4))
+    contact = aj.FrictionContact("w4", normal_force=2.0, friction=aj.Coulomb(mu=0.3, eps=1e-2))
+    system = aj.StructuralSystem(beam, [contact], load="w4")
+    om = np.linspace(22.0, 27.0, 6)
+    hb = aj.HarmonicBalance(harmonics=7, tol=1e-12)
+    names = ["friction_contact1.normal_force", "friction_contact1.mu"]
+    v, g, status = aj.value_and_grad(system, names, om, amplitude=2.0, method=hb,
+                                     objective=aj.objectives.MeanSquare())
+    assert np.all(status == 0)
+    for name, h in zip(names, (1e-4, 1e-5)):
+        p = float(aj.get_param(system, name))
+        up, _, _ = aj.value_and_grad(aj.replace_params(system, {name: p + h}), names, om,
+                                     amplitude=2.0, method=hb,
+                                     objective=aj.objectives.MeanSquare())
+        down, _, _ = aj.value_and_grad(aj.replace_params(system, {name: p - h}), names, om,
+                                       amplitude=2.0, method=hb,
+                                       objective=aj.objectives.MeanSquare())
+        assert abs(g[name] / ((up - down) / (2 * h)) - 1) < 1e-6
+    with pytest.raises(ValueError, match="follows its peaks by shooting"):
+        aj.value_and_grad(system, names, om, amplitude=2.0, method=hb,
+                          objective=aj.objectives.ExactPeak())

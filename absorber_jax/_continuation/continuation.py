@@ -54,17 +54,19 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import check_scalar, check_state, require_x64
-from .._core.legacy import no_more
+from .._core.legacy import moved, no_more
 from .._core.status import Status
 from .._integration.flow import (
     state_scale,
 )
 from .._integration.settings import integrator_from
+from .._periodic.harmonic import HarmonicBalance
 from .._periodic.shooting import Shooting
 from .._periodic.steady import check_system_and_forcing, steady_state
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
 from .._systems.params import replace_params, resolve
+from .balance import _BalanceDriver, _BalanceProblem
 from .branch import Bifurcation, Branch
 from .constants import FORCING_PARAMETERS, GAP, START_SCALES
 from .driver import (
@@ -88,7 +90,7 @@ from .problem import _get_value, _Problem, _set_value
 def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                  parameter: str = "omega", *, bounds, method: PseudoArclength | None = None,
                  n: int = 1, direction: str = "up", start=None, guess=None, integrator=None,
-                 locate=True, progress=False, **legacy) -> Branch:
+                 orbit=None, progress=False, **legacy) -> Branch:
     """Follow a branch of period-``n`` orbits of ``system`` under ``forcing`` in
     ``parameter`` by pseudo-arclength continuation (see the module docstring), through
     folds, with the bifurcations on it detected and located.
@@ -102,7 +104,8 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
       or any name of ``system.parameter_names()`` (``k1``, ``gap``, ``N``, ``tmd1.k`` ...).
     - ``bounds``: ``(lo, hi)``: the branch ends where the parameter leaves them (the last
       point lands on the bound); the start value must lie inside.
-    - ``method``: a ``PseudoArclength`` with the step and corrector options.
+    - ``method``: a ``PseudoArclength`` with the step, corrector and location options
+      (``locate=False``: bifurcations reported at the nearer branch point, not located).
     - ``n``: period multiple of the orbits followed.
     - ``direction``: ``"up"`` or ``"down"``: the parameter's direction at the start.
     - ``start``: None (the first orbit is solved at the forcing's and system's current
@@ -113,8 +116,6 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     - ``integrator``: an ``Integrator`` (default: the periodic tolerances, rtol = atol =
       1e-9 on the scaled state; the solver is chosen at the lowest frequency of the bounds
       when continuing in ``omega``).
-    - ``locate``: locate each bifurcation (a few corrector solves each); otherwise they are
-      reported at the nearer branch point.
     - ``progress``: a tqdm bar over the branch points.
 
     **Returns** a ``Branch``.
@@ -126,7 +127,9 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     br.values, br.amplitude, br.stable, [(b.kind, b.value) for b in br.bifurcations]
     ```
     """
-    method, lo, hi = _check_common(system, forcing, parameter, bounds, method, n, "continuation")
+    method, lo, hi = _check_common(system, forcing, parameter, bounds, method, n, "continuation",
+                                   legacy)
+    locate = method.locate
     if direction not in ("up", "down"):
         raise ValueError(f"direction must be 'up' or 'down', got {direction!r}")
     if start is not None:
@@ -147,6 +150,17 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     cfg = _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps)
     s0 = state_scale(system, forcing)
     pscale = abs(value0) if value0 != 0 else max(abs(lo), abs(hi))
+    if orbit is not None:
+        _check_balance(system, orbit, n, start)
+        prob = _BalanceProblem(system=system, forcing=forcing, s0=s0,
+                               pscale=jnp.asarray(pscale), balance=orbit, parameter=parameter)
+        drv = _BalanceDriver(prob, method, (lo, hi))
+        g = (system.linear_guess(forcing) if guess is None
+             else system.to_internal(jnp.asarray(guess, dtype=float)))
+        first = drv.first(np.asarray(g) / np.asarray(s0), value0 / pscale, direction, cfg)
+        with _bar(method.max_points, parameter, progress) as bar:
+            points, bifs, termination = _run(_follow(drv, first, None, locate, bar))
+        return _finish(_branch(points, bifs, termination, drv, value0, system))
     prob = _Problem(system=system, forcing=forcing, s0=s0, pscale=jnp.asarray(pscale),
                     cfg=cfg, parameter=parameter, n=n)
     drv = _Driver(prob, method, (lo, hi))
@@ -176,17 +190,35 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
 
     with _bar(method.max_points, parameter, progress) as bar:
         points, bifs, termination = _run(_follow(drv, first, rejoin, locate, bar))
-    branch = _branch(points, bifs, termination, drv, value0, system)
+    return _finish(_branch(points, bifs, termination, drv, value0, system))
+
+
+def _finish(branch):
+    """``branch``, with a warning where it did not go where it was asked to."""
     if not branch.reached:
-        warnings.warn(f"continuation: {branch.ending()}", RuntimeWarning, stacklevel=2)
+        warnings.warn(f"continuation: {branch.ending()}", RuntimeWarning, stacklevel=3)
     return branch
+
+
+def _check_balance(system, orbit, n, start):
+    """Checks of ``continuation(orbit=...)``."""
+    if not isinstance(orbit, HarmonicBalance):
+        raise ValueError(f"continuation.orbit must be None (shooting) or an "
+                         f"aj.HarmonicBalance(...), got {type(orbit).__name__}")
+    if n != 1 or start is not None:
+        raise ValueError("continuation with orbit=HarmonicBalance follows period-1 orbits "
+                         "from the forcing's values: give n=1 and no start (branch switching "
+                         "at a period doubling needs shooting)")
+    if system.hybrid:
+        raise ValueError("continuation with orbit=HarmonicBalance needs a vector field to "
+                         "balance: the exact event-driven laws have none; use shooting "
+                         "(orbit=None) or a compliant or smoothed law")
 
 
 def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                       parameter: str = "omega", *,
                       bounds, starts=8, method: PseudoArclength | None = None, n: int = 1,
-                      fill: int = 2, integrator=None, locate=True, progress=False,
-                      **legacy) -> tuple:
+                      fill: int = 2, integrator=None, progress=False, **legacy) -> tuple:
     """Cover a parameter band with branches of period-``n`` orbits followed from several
     start values at once: every start up and down, each half-branch bounded by the
     neighbouring start values (so every cell between two starts is followed from both
@@ -201,7 +233,7 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     0.031 s for one).
 
     **Arguments** as ``continuation`` (``bounds``, ``method``, ``n``, ``integrator``,
-    ``locate``, ``progress``), and
+    ``progress``), and
 
     - ``starts``: the number of start values (the centres of that many equal cells of the
       bounds) or the start values themselves (inside the bounds).  The first orbit at each
@@ -225,7 +257,8 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     passes' after the starts' (two per fill start that had a first guess).
     """
     method, lo, hi = _check_common(system, forcing, parameter, bounds, method, n,
-                                   "band_continuation")
+                                   "band_continuation", legacy)
+    locate = method.locate
     if isinstance(starts, int) and not isinstance(starts, bool):
         if starts < 1:
             raise ValueError(f"starts must be a positive integer or values, got {starts!r}")
@@ -372,13 +405,18 @@ def _gaps(out, lo, hi):
                   key=lambda g: g[0] - g[1])
 
 
-def _check_common(system, forcing, parameter, bounds, method, n, where):
-    """Checks shared by the continuation entry points; returns ``(method, lo, hi)``."""
+def _check_common(system, forcing, parameter, bounds, method, n, where, legacy):
+    """Checks shared by the continuation entry points; returns ``(method, lo, hi)``, the
+    deprecated ``locate`` keyword moved from ``legacy`` into the method."""
     require_x64(where)
     check_system_and_forcing(system, forcing, where)
     method = PseudoArclength() if method is None else method
     if not isinstance(method, PseudoArclength):
         raise ValueError(f"method must be a PseudoArclength(...), got {method!r}")
+    if "locate" in legacy:
+        given = {"locate": bool(legacy.pop("locate"))}
+        moved(where, given, "method=aj.PseudoArclength({})")
+        method = dataclasses.replace(method, **given)
     if not isinstance(parameter, str):
         raise ValueError(f"parameter must be a name, got {parameter!r}")
     if parameter not in FORCING_PARAMETERS:

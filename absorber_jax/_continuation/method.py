@@ -20,6 +20,8 @@ class PseudoArclength(eqx.Module):
     - ``newton_steps``: corrector iterations per step.
     - ``max_angle``: largest turn of the tangent between two points [rad].
     - ``locate_tol``: bifurcations are located to this arclength (scaled).
+    - ``locate``: locate each bifurcation (a few corrector solves each); ``False``: report
+      it at the nearer branch point.
     """
 
     step: float = eqx.field(static=True, default=0.01)
@@ -30,6 +32,7 @@ class PseudoArclength(eqx.Module):
     newton_steps: int = eqx.field(static=True, default=12)
     max_angle: float = eqx.field(static=True, default=0.35)
     locate_tol: float = eqx.field(static=True, default=1e-9)
+    locate: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
         for name in ("step", "min_step", "max_step", "tol", "locate_tol"):

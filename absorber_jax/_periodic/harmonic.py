@@ -130,28 +130,36 @@ class HarmonicBalance(AbstractSteadyMethod):
         condensation = system.condensation() if self.condense else None
         if condensation is not None and condensation.size:
             return self._condensed(system, forcing, condensation, x0, cfg, with_floquet)
-        H, N = self.harmonics, self.time_samples
-        T = forcing.period
-        omega = forcing.omega
+        H = self.harmonics
         scale = state_scale(system, forcing)
-        E, P, D = fourier_matrices(H, N)
-
-        def field(c):
-            x = E @ c                                              # (N, n) scaled states
-            ts = jnp.arange(N) * (T / N)
-            f = jax.vmap(lambda t, y: system.vector_field(t, y * scale, forcing) / scale)(ts, x)
-            # the residual of x' - f, time scaled by 1/ω
-            return D @ c - (P @ f) / omega
 
         def flat(v):
-            return field(v.reshape(2 * H + 1, -1)).reshape(-1)
+            return self.residual(system, forcing, v.reshape(2 * H + 1, -1), scale).reshape(-1)
 
-        v, status, res, k = self._newton(flat, (P @ _warmed(system, forcing, x0, cfg, N))
+        v, status, res, k = self._newton(flat, self.first_series(system, forcing, x0, cfg)
                                          .reshape(-1))
         c = v.reshape(2 * H + 1, -1)
-        mult = (hill_multipliers(jax.jacfwd(flat)(v), H, omega, T) if with_floquet
-                else None)
-        return _steady(system, forcing, c * scale, mult, status, res, k)
+        mult = (hill_multipliers(jax.jacfwd(flat)(v), H, forcing.omega, forcing.period)
+                if with_floquet else None)
+        return steady_from_series(system, forcing, c * scale, mult, status, res, k)
+
+    def residual(self, system, forcing, c, scale):
+        """The balance's residual ``(2H+1, n)``: the Fourier coefficients of ``ẋ - f(t, x)``
+        (time scaled by ``1/ω``) for the state whose coefficients are ``c`` times
+        ``scale`` (the state scaled to order one), ``f`` sampled at ``samples`` instants a
+        period (the alternating frequency–time scheme)."""
+        H, N = self.harmonics, self.time_samples
+        T, omega = forcing.period, forcing.omega
+        E, P, D = fourier_matrices(H, N)
+        ts = jnp.arange(N) * (T / N)
+        f = jax.vmap(lambda t, y: system.vector_field(t, y * scale, forcing) / scale)(ts, E @ c)
+        return D @ c - (P @ f) / omega
+
+    def first_series(self, system, forcing, x0, cfg):
+        """The first guess of a full balance ``(2H+1, n)`` (scaled state): the last of
+        ``WARMUP`` periods integrated from scaled state ``x0``, projected on the harmonics."""
+        _, P, _ = fourier_matrices(self.harmonics, self.time_samples)
+        return P @ _warmed(system, forcing, x0, cfg, self.time_samples)
 
     def _newton(self, flat, v0):
         """Damped Newton on ``flat(v) = 0`` from ``v0``: ``(v, status, residual, steps)``.
@@ -229,7 +237,7 @@ class HarmonicBalance(AbstractSteadyMethod):
         states = jax.vmap(cond.to_state)(Qc, omega * (D @ Qc))   # the state's coefficients
         mult = (floquet(system, forcing, (E[0] @ states) / scale, 1, cfg) if with_floquet
                 else None)
-        return _steady(system, forcing, states, mult, status, res, k)
+        return steady_from_series(system, forcing, states, mult, status, res, k)
 
 
 def _with_value(fn):
@@ -242,7 +250,7 @@ def _with_value(fn):
     return both
 
 
-def _steady(system, forcing, coefficients, mult, status, residual, iterations):
+def steady_from_series(system, forcing, coefficients, mult, status, residual, iterations):
     """The ``SteadyState`` of the orbit whose internal state has the real Fourier
     ``coefficients`` ``(2H+1, states)``: its statistics from the series sampled as
     shooting's are (``SAMPLES_PER_PERIOD`` a period), ``mult`` its multipliers (None: not

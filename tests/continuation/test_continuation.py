@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import reference_jumps as rj
 import reference_nlvib03 as ref03
-from builders import HARD, hardening, nlvib03
+from builders import HARD, CubicSpring, hardening, nlvib03
 from reference_jumps import slow_sweep_jumps
 
 import absorber_jax as aj
@@ -452,3 +452,36 @@ def test_cli_continue_and_attractors_inside_the_hysteresis(tmp_path, capsys):
     ref.append(float(aj.steady_state(system, f, guess=bra.states[i]).amplitude))
     np.testing.assert_allclose(amps, sorted(ref), rtol=1e-5)
     assert main(["attractors", "--file", str(path), "--omega", "x", "--out", str(out2)]) == 2
+
+
+def test_a_harmonic_balance_branch_has_shootings_folds_and_floquet_labels():
+    """``continuation(orbit=HarmonicBalance(9))`` on a Duffing oscillator
+    (``ẍ + 2ẋ + 10³x + 10⁶x³ = 5 sin ωt``) through both folds: the folds where the shooting
+    branch has them (measured 1.3e-11 and 4.8e-10), and along the branch Hill's stability
+    labels equal the Floquet labels of shooting at the same orbits (the unstable middle
+    branch included)."""
+
+    st = aj.structure_from_matrices([[1.0]], [[1e3]], damping=[[2.0]], dof_names=["x"])
+    duffing = aj.StructuralSystem(st, [CubicSpring("x", k3=1e6)], load="x")
+    forcing = aj.Harmonic(amplitude=5.0, omega=25.0)
+    shoot = aj.continuation(duffing, forcing, "omega", bounds=(25.0, 70.0))
+    hb = aj.continuation(duffing, forcing, "omega", bounds=(25.0, 70.0),
+                         orbit=aj.HarmonicBalance(harmonics=9))
+    assert hb.termination == "bounds" and np.all(hb.ok)
+    folds = sorted(b.value for b in hb.of_kind("fold"))
+    ref = sorted(b.value for b in shoot.of_kind("fold"))
+    assert len(folds) == len(ref) == 2 and len(hb.bifurcations) == 2
+    np.testing.assert_allclose(folds, ref, rtol=1e-5)
+    stable = np.asarray(hb.stable)
+    assert stable.any() and (~stable).any()
+    picks = np.linspace(0, len(hb.values) - 1, 12).astype(int)
+    for i in picks:
+        ss = aj.steady_state(duffing, forcing.with_omega(float(hb.values[i])),
+                             guess=np.asarray(hb.states[i]), method=aj.Shooting(tol=1e-10))
+        assert int(ss.status) == 0
+        assert bool(ss.stable) == bool(stable[i]), (hb.values[i], ss.multipliers,
+                                                    hb.multipliers[i])
+        assert abs(float(ss.amplitude) / float(hb.amplitude[i]) - 1) < 1e-6
+    with pytest.raises(ValueError, match="period-1 orbits"):
+        aj.continuation(duffing, forcing, "omega", bounds=(25.0, 70.0), n=2,
+                        orbit=aj.HarmonicBalance())

@@ -37,6 +37,7 @@ from .._core.progress import PointProgress
 from .._core.status import Status
 from .._systems.base import AbstractSystem
 from .harmonic import HarmonicBalance, fourier_matrices
+from .orbit import dof_field
 
 
 class NonlinearModes(eqx.Module):
@@ -68,9 +69,7 @@ class NonlinearModes(eqx.Module):
 
     def dof(self, name, field="amplitude"):
         """``dof_<field>`` (``amplitude`` or ``harmonic``) of degree of freedom ``name``."""
-        if name not in self.dof_names:
-            raise ValueError(f"dof must be one of {list(self.dof_names)}, got {name!r}")
-        return np.asarray(getattr(self, "dof_" + field))[:, self.dof_names.index(name)]
+        return dof_field(self, self.dof_names, name, field)
 
     def failures(self):
         """``[(index, what failed and what to try)]`` of the points that failed."""

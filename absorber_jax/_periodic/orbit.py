@@ -124,9 +124,15 @@ class SteadyResults:
 
     def dof(self, name, field="amplitude"):
         """``dof_<field>`` (amplitude, rms or harmonic) at the degree of freedom ``name``."""
-        if name not in self.dof_names:
-            raise ValueError(f"dof must be one of {list(self.dof_names)}, got {name!r}")
-        return np.asarray(getattr(self.steady, "dof_" + field))[..., self.dof_names.index(name)]
+        return dof_field(self.steady, self.dof_names, name, field)
+
+
+def dof_field(source, names, name, field):
+    """``source.dof_<field>`` (points × degrees of freedom ``names``) at the degree of
+    freedom ``name`` (ValueError naming the known ones otherwise)."""
+    if name not in names:
+        raise ValueError(f"dof must be one of {list(names)}, got {name!r}")
+    return np.asarray(getattr(source, "dof_" + field))[..., names.index(name)]
 
 
 def read_through(cls, names, where):

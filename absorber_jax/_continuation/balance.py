@@ -24,6 +24,7 @@ from .._periodic.harmonic import (
     HarmonicBalance,
     fourier_matrices,
     hill_multipliers,
+    newton_solve,
     steady_from_series,
 )
 from .._systems.base import AbstractSystem
@@ -58,8 +59,8 @@ class _BalanceProblem(eqx.Module):
 
 @eqx.filter_jit
 def _balance_corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
-    """Newton on ``[R(z); t_prev·(z - z_pred)] = 0`` from ``z_pred`` (minimum-norm
-    least-squares steps), stopped where the residual has not halved over two steps (a
+    """Newton on ``[R(z); t_prev·(z - z_pred)] = 0`` from ``z_pred`` (steps by the balance's
+    own ``newton_solve``), stopped where the residual has not halved over two steps (a
     ``patient`` first orbit: the whole budget); returns the point, its tangent, its
     ``SteadyState`` (Hill multipliers) and its internal state at ``t = 0``."""
     m = z_pred.shape[0] - 1
@@ -72,7 +73,7 @@ def _balance_corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     def newton_step(z, J, r):
         A = jnp.concatenate([J, t_prev[None]], axis=0)
         rhs = -jnp.concatenate([r, (t_prev @ (z - z_pred))[None]])
-        return _square_solve(A, rhs)
+        return newton_solve(A, rhs)
 
     def body(c):
         z, J, r, bad, k, res_prev, res_prev2, _ = c
@@ -94,7 +95,7 @@ def _balance_corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     status = jnp.where(bad, Status.NONFINITE, jnp.where(ok, Status.SUCCESS,
                                                           Status.NO_CONVERGENCE))
     A = jnp.concatenate([J, t_prev[None]], axis=0)
-    t = _square_solve(A, jnp.zeros(m + 1).at[-1].set(1.0))
+    t = newton_solve(A, jnp.zeros(m + 1).at[-1].set(1.0))
     t = t / jnp.linalg.norm(t)
     t = t * jnp.where(t @ t_prev < 0, -1.0, 1.0)
     sysp, forcp = prob.at(z[-1])
@@ -103,15 +104,6 @@ def _balance_corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     ss = steady_from_series(sysp, forcp, c, mult, status, res, k - 1)
     x0 = fourier_matrices(prob.balance.harmonics, 1)[0][0] @ c
     return z, t, ss, x0
-
-
-def _square_solve(A, b):
-    """``A⁻¹ b`` by LU (the bordered matrix is square and regular along a branch of isolated
-    orbits), the minimum-norm least-squares solution where LU fails (a singular family);
-    LU costs far less than the SVD of ``lstsq`` at the sizes of a balance (~60: 0.06 ms
-    against tens of ms on this CPU)."""
-    x = jnp.linalg.solve(A, b)
-    return jax.lax.cond(jnp.all(jnp.isfinite(x)), lambda: x, lambda: jnp.linalg.lstsq(A, b)[0])
 
 
 class _NoSection(eqx.Module):
@@ -169,7 +161,7 @@ class _BalanceDriver:
         few periods, corrected at the scaled parameter ``p0`` with the whole Newton budget."""
         sysp, forcp = self.prob.at(jnp.asarray(p0))
         c = self.prob.balance.first_series(sysp, forcp, jnp.asarray(x0), cfg)
-        z = np.append(np.asarray(c).reshape(-1) * 1.0, p0)
+        z = np.append(np.asarray(c).reshape(-1), p0)
         e = np.zeros_like(z)
         e[-1] = 1.0 if direction == "up" else -1.0
         return self.solve(z, e, True)

@@ -118,7 +118,8 @@ def craig_bampton(mass, stiffness, boundary, n_modes, *, damping=None, rayleigh=
     Kii = K[i][:, i].tocsc()
     d = 1.0 / np.sqrt(np.maximum(np.abs(Kii.diagonal()), 1e-300))
     Dg = sp.diags(d)
-    Kt, Mt = (Dg @ Kii @ Dg).tocsc(), (Dg @ M[i][:, i] @ Dg).tocsc()
+    Mii = M[i][:, i]
+    Kt, Mt = (Dg @ Kii @ Dg).tocsc(), (Dg @ Mii @ Dg).tocsc()
     Kib = K[i][:, b].toarray()
     try:
         solve = spla.factorized(Kt)
@@ -131,7 +132,7 @@ def craig_bampton(mass, stiffness, boundary, n_modes, *, damping=None, rayleigh=
         lam, Phi = spla.eigsh(Kt, k=n_modes, M=Mt, sigma=0.0, which="LM")
         order = np.argsort(lam)
         lam, Phi = lam[order], d[:, None] * Phi[:, order]
-        Phi /= np.sqrt(np.einsum("ij,ij->j", Phi, M[i][:, i] @ Phi))
+        Phi /= np.sqrt(np.einsum("ij,ij->j", Phi, Mii @ Phi))
     else:
         lam, Phi = np.zeros(0), np.zeros((len(i), 0))
 

@@ -888,28 +888,25 @@ class Condensation(eqx.Module):
             return rhs / jnp.diagonal(Z)[:, None]
         return jnp.linalg.solve(Z, rhs)
 
-    def _map(self):
-        used, _ = self.system._used()
-        return self.system.structure.dof_map[np.asarray(used, dtype=int)]
-
     @property
     def dof_map(self):
         """``Φ_u`` ``(u, n_coords)``: the rows of the structure's output map at the degrees of
         freedom ``u``."""
-        return self._map()
+        used, _ = self.system._used()
+        return self.system.structure.dof_map[np.asarray(used, dtype=int)]
 
     def responses(self, omega):
         """The coordinates' complex amplitudes at ``omega`` [rad/s] under unit forces at
         each degree of freedom of ``u`` and under a unit load ``F``: ``Z⁻¹ [Φ_uᵀ, l]``
         ``(n_coords, u + 1)``; ``at_dofs`` of it gives the receptances ``G`` and ``g``."""
-        rhs = jnp.concatenate([self._map().T, self.system.coordinate_load()[:, None]],
+        rhs = jnp.concatenate([self.dof_map.T, self.system.coordinate_load()[:, None]],
                               axis=1).astype(complex)
         return self._solve(omega, rhs)
 
     def at_dofs(self, s):
         """The displacements at the degrees of freedom ``u`` of internal state ``s``, or of
         coordinate amplitudes ``s`` ``(n_coords, …)``: ``Φ_u s[:n_coords]``."""
-        return self._map() @ s[:self.system.num_coords]
+        return self.dof_map @ s[:self.system.num_coords]
 
     def to_state(self, q, qd):
         """The system's internal state from coordinates and their rates."""

@@ -44,7 +44,14 @@ from ._laws.contact import (  # noqa: E402
     HuntCrossley,
     KelvinVoigt,
 )
-from ._laws.friction import AbstractFrictionLaw, Coulomb, Dahl, LuGre, Stribeck  # noqa: E402
+from ._laws.friction import (  # noqa: E402
+    AbstractFrictionLaw,
+    AbstractStickSlipLaw,
+    Coulomb,
+    Dahl,
+    LuGre,
+    Stribeck,
+)
 from ._laws.helpers import (  # noqa: E402
     effective_mass,
     equivalent_hertz_stiffness,
@@ -56,7 +63,7 @@ from ._laws.helpers import (  # noqa: E402
 )
 from ._laws.restitution import Restitution, restitution_of  # noqa: E402
 from ._periodic.attractors import Attractor, AttractorMap, attractors, bifurcation_diagram  # noqa: E402
-from ._periodic.base import AbstractSteadyMethod  # noqa: E402
+from ._periodic.base import AbstractChainingMethod, AbstractSteadyMethod  # noqa: E402
 from ._periodic.harmonic import HarmonicBalance  # noqa: E402
 from ._periodic.marching import Marching  # noqa: E402
 from ._periodic.modes import NonlinearModes, nonlinear_modes  # noqa: E402
@@ -74,7 +81,7 @@ from ._study.distributions import AbstractDistribution, Normal, Uniform  # noqa:
 from ._study.result import StudyResult  # noqa: E402
 from ._study.study import study  # noqa: E402
 from ._systems.absorbers import AbstractAbsorberSystem, FrictionAbsorber, ImpactAbsorber  # noqa: E402
-from ._systems.base import AbstractSystem  # noqa: E402
+from ._systems.base import AbstractHybridSystem, AbstractSystem  # noqa: E402
 from ._systems.elements import (  # noqa: E402
     AbstractAbsorber,
     AbstractElement,
@@ -110,17 +117,19 @@ __version__ = "0.1.0"
 __all__ = [
     "Integrator",
     "AbstractAbsorberSystem", "AbstractContactLaw", "AbstractForcing", "AbstractFrictionLaw",
+    "AbstractStickSlipLaw",
     "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
     "FrequencyResponse", "SteadyState", "frequency_response", "Shooting", "Marching",
     "HarmonicBalance", "NonlinearModes", "nonlinear_modes",
-    "AbstractSteadyMethod", "solve_point", "get_param", "linear_guess",
+    "AbstractSteadyMethod", "AbstractChainingMethod", "solve_point", "get_param", "linear_guess",
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
     "band_objective", "smooth_max", "plot_tuning", "BandPeak", "exact_peak",
     "Coexisting", "RobustPeak", "robust_peak",
     "LinearStructure", "beam_matrices", "cantilever_beam", "craig_bampton", "read_matrix",
     "shear_building", "structure_from_matrices",
-    "structure_from_modes", "AbstractSystem", "StructuralSystem", "AbstractElement", "Contact",
+    "structure_from_modes", "AbstractSystem", "AbstractHybridSystem", "StructuralSystem",
+    "AbstractElement", "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
     "Attractor", "AttractorMap", "attractors", "bifurcation_diagram", "plot_bifurcation_diagram",
     "Bifurcation", "Branch", "PseudoArclength", "band_continuation", "continuation",

@@ -63,7 +63,7 @@ from .._integration.settings import integrator_from
 from .._periodic.harmonic import HarmonicBalance
 from .._periodic.shooting import Shooting
 from .._periodic.steady import check_system_and_forcing, steady_state
-from .._systems.base import AbstractSystem
+from .._systems.base import AbstractSystem, is_hybrid
 from .._systems.forcing import AbstractPeriodicForcing
 from .._systems.params import replace_params, resolve
 from .balance import _BalanceDriver, _BalanceProblem
@@ -209,7 +209,7 @@ def _check_balance(system, orbit, n, start):
         raise ValueError("continuation with orbit=HarmonicBalance follows period-1 orbits "
                          "from the forcing's values: give n=1 and no start (branch switching "
                          "at a period doubling needs shooting)")
-    if system.hybrid:
+    if is_hybrid(system):
         raise ValueError("continuation with orbit=HarmonicBalance needs a vector field to "
                          "balance: the exact event-driven laws have none; use shooting "
                          "(orbit=None) or a compliant or smoothed law")

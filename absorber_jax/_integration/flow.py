@@ -24,6 +24,7 @@ import optimistix as optx
 
 from .._core.checks import is_traced
 from .._core.status import Status, from_diffrax
+from .._systems.base import is_hybrid
 from .simulate import _resolve_solver
 from .stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
 from .unrolled import unrolled
@@ -103,7 +104,7 @@ def integrate(dyn, x0, t0, t1, ts, cfg):
     ``ts`` is None), and the status: smooth systems by one diffrax solve, hybrid ones
     (exact stick–slip) segment by segment (``_integration.stickslip``)."""
     system, forcing = dyn
-    if system.hybrid:
+    if is_hybrid(system):
         ys, x, status, _, _, _ = _hybrid(dyn, x0, t0, t1, ts, cfg)
         return (x[None] if ts is None else ys), status
     if large_state(system):
@@ -201,7 +202,7 @@ def _flow_jvp(primals, tangents, *, cfg):
     # pass of exact_peak on a TMD takes 0.15 s this way, 1.23 s with them).  Hybrid (exact
     # stick–slip) systems: every input through the event times and the segments' steps, the times
     # included (the rate at a save time is the mode's there).
-    hybrid = dyn[0].hybrid
+    hybrid = is_hybrid(dyn[0])
     k = 4 if hybrid else 2
     if any(t is not None for t in jax.tree_util.tree_leaves(tangents[:k], is_leaf=is_none)):
         active, t_vec = _active_tangents(tangents[:k])
@@ -268,7 +269,7 @@ def _by_sensitivities(dyn, cfg):
     are controlled on the tangents, and large states), not through the solver's steps."""
     implicit = isinstance(cfg.solver, diffrax.AbstractImplicitSolver)
     large = large_state(dyn[0])
-    return (implicit or cfg.tangent_control or large) and not dyn[0].hybrid
+    return (implicit or cfg.tangent_control or large) and not is_hybrid(dyn[0])
 
 
 def lane_by_lane(fn):
@@ -371,7 +372,7 @@ def flow_along(dyn, x0, v0, t1, ts, cfg):
     tangent rather than the ``n`` of a Jacobian (``jax.jvp`` of ``integrate_flow`` assembles the
     full Jacobian first).  Hybrid (exact stick–slip) systems, whose tangent crosses events,
     take ``jax.jvp`` of ``integrate_flow``.  Returns ``(ys, vs, status)``."""
-    if dyn[0].hybrid:
+    if is_hybrid(dyn[0]):
         (ys, status), (vs, _) = jax.jvp(lambda z: integrate_flow(dyn, z, t1, ts, cfg=cfg),
                                         (x0,), (v0,))
         return ys, vs, status
@@ -421,4 +422,4 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
     stiffish = (not is_traced(lam) and not is_traced(period)
                 and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
     return Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
-                   tangent_control=bool(explicit and stiffish and not system.hybrid))
+                   tangent_control=bool(explicit and stiffish and not is_hybrid(system)))

@@ -16,7 +16,7 @@ from .._core.custom_types import Status as StatusArray
 from .._core.legacy import no_more
 from .._core.status import Status, describe, from_diffrax
 from .._core.tables import dataframe, trajectory_columns, trajectory_dataset, write_csv
-from .._systems.base import AbstractSystem
+from .._systems.base import AbstractSystem, is_hybrid
 from .._systems.forcing import AbstractForcing
 from .._systems.scales import warn_scales
 from .settings import integrator_from
@@ -255,7 +255,7 @@ def _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, 
                       energy):
     """States at ``ts`` (with the work and dissipation columns when ``energy``), status and
     step count: one diffrax solve, or the event-driven segments of a hybrid system."""
-    if system.hybrid:
+    if is_hybrid(system):
         ys, _, status, nsteps, _, _ = hybrid_solve(
             system, forcing, s0, t0, t1, ts, solver=solver, rtol=rtol, atol=atol,
             max_steps=max_steps, scale=jnp.ones_like(s0),
@@ -372,7 +372,7 @@ def simulate(
     max_steps = int(integ.max_steps * max(1, math.ceil((t1 - t0) / float(forcing.period))))
     check_state("y0", y0, system.num_states)
     warn_scales(system, forcing, "simulate")
-    if energy and system.hybrid:
+    if energy and is_hybrid(system):
         raise ValueError("simulate.energy=True is not available with an exact stick–slip law "
                          "(friction.exact=True): use the smoothed law for energy bookkeeping")
     if ts is None:

@@ -1,13 +1,14 @@
 r"""Exact integration of hybrid (piecewise-smooth) systems: stick–slip friction, rigid impacts.
 
-A hybrid system (``system.hybrid``) has modes, each with a smooth vector field
-(``system.mode_rate``) and a switching function (``system.switch_function``) that leaves the
-mode where it crosses zero upwards; ``system.next_mode`` picks the next mode at the switch
-and projects the state onto it (a slip ending in stick sets the relative velocity to exactly
-zero; an impact reverses the relative velocity by Newton's law).  The exact Coulomb and
-Stribeck laws and the rigid impact law (``Restitution``) are integrated this way: no
-smoothing length or contact stiffness, so no stiff time scale enters (the ``eps -> 0`` and
-infinite-stiffness limits of the smoothed and penalty laws).
+A hybrid system (an ``AbstractHybridSystem`` whose ``hybrid`` is true) has modes, each
+with a smooth vector field (``system.mode_rate``) and a switching function
+(``system.switch_function``) that leaves the mode where it crosses zero upwards;
+``system.next_mode`` picks the next mode at the switch and projects the state onto it (a
+slip ending in stick sets the relative velocity to exactly zero; an impact reverses the
+relative velocity by Newton's law).  The exact Coulomb and Stribeck laws and the rigid
+impact law (``Restitution``) are integrated this way: no smoothing length or contact
+stiffness, so no stiff time scale enters (the ``eps -> 0`` and infinite-stiffness limits of
+the smoothed and penalty laws).
 
 Each segment is one diffrax solve that stops at the switching event (diffrax's event root
 finder on the dense interpolant).  Derivatives through the event times are exact to first
@@ -48,8 +49,9 @@ POLISH_MAX = 1e-8
 EVENT_CHECK = 1e-6
 
 
-class _EventBisection(optx.Bisection):
-    """Bisection on diffrax's event bracket, its direction detected per lane.
+class _EventBisection(optx.AbstractRootFinder):
+    """Bisection on diffrax's event bracket (wraps ``optx.Bisection``), its direction
+    detected per lane.
 
     A switch is an upcrossing, ``g(t_prev) <= 0 < g(t_next)``; but under ``vmap`` diffrax
     also runs the root find on lanes without an event, where the function is
@@ -57,11 +59,34 @@ class _EventBisection(optx.Bisection):
     there (no sign change when evaluated at the end), so the direction is set here from the
     two end values without a check."""
 
+    solver: optx.Bisection
+
+    @property
+    def rtol(self):
+        return self.solver.rtol
+
+    @property
+    def atol(self):
+        return self.solver.atol
+
+    @property
+    def norm(self):
+        return self.solver.norm
+
     def init(self, fn, y, args, options, f_struct, aux_struct, tags):
-        state = super().init(fn, y, args, options, f_struct, aux_struct, tags)
+        state = self.solver.init(fn, y, args, options, f_struct, aux_struct, tags)
         lo, _ = fn(jnp.asarray(options["lower"], f_struct.dtype), args)
         hi, _ = fn(jnp.asarray(options["upper"], f_struct.dtype), args)
         return eqx.tree_at(lambda s: s.flip, state, lo > hi)
+
+    def step(self, fn, y, args, options, state, tags):
+        return self.solver.step(fn, y, args, options, state, tags)
+
+    def terminate(self, fn, y, args, options, state, tags):
+        return self.solver.terminate(fn, y, args, options, state, tags)
+
+    def postprocess(self, fn, y, aux, args, options, state, tags, result):
+        return self.solver.postprocess(fn, y, aux, args, options, state, tags, result)
 
 
 def _sg(x):
@@ -97,7 +122,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     # one tolerance on their value serves every scale of motion; it cannot be much tighter:
     # late in a long run one rounding step of t moves g by |ġ| ulp(t) ~ 1e-12.  The located
     # time is then polished by one Newton step dt = -g/ġ below.
-    root = _EventBisection(rtol=1e-14, atol=EVENT_TOL, flip=False)
+    root = _EventBisection(optx.Bisection(rtol=1e-14, atol=EVENT_TOL, flip=False))
     # rigid walls: no step longer than the system's limit, so that an excursion beyond a
     # wall shorter than one step (crossed and crossed back between the step's ends, near
     # grazing) stays shallow (see AbstractSystem.event_step_limit)

@@ -35,6 +35,12 @@ class AbstractFrictionLaw(eqx.Module):
     # and slip at events (see absorber_jax._integration.stickslip)
     exact: eqx.AbstractVar[bool]
 
+    def __check_init__(self):
+        if self.exact is True and not isinstance(self, AbstractStickSlipLaw):
+            raise ValueError(f"{type(self).__name__}: exact=True needs a memoryless law "
+                             "derived from AbstractStickSlipLaw (it gives breakaway_force "
+                             "and kinetic_force); give eps for a smoothed law instead")
+
     @abc.abstractmethod
     def force(self, v, z, normal_force):
         """Friction force [N] at sliding velocity ``v`` and internal state ``z``
@@ -80,7 +86,6 @@ class AbstractFrictionLaw(eqx.Module):
     def initial_state(self):
         return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
 
-    # -- exact (event-driven) stick–slip: memoryless laws only ------------------------
     @abc.abstractmethod
     def kinetic_level(self, normal_force):
         """Kinetic (Coulomb) level ``μc N`` [N] of the friction force in gross sliding."""
@@ -89,13 +94,21 @@ class AbstractFrictionLaw(eqx.Module):
         """Natural size of the internal states (empty for memoryless laws)."""
         return jnp.zeros((self.num_states,))
 
+
+class AbstractStickSlipLaw(AbstractFrictionLaw):
+    """A memoryless friction law (no internal state) that can also be integrated exactly:
+    with ``exact=True`` the contact switches between stick and slip at events (see
+    ``absorber_jax._integration.stickslip``), and the law gives the two levels those events
+    need.  Coulomb and Stribeck are such laws; a law with internal states (Dahl, LuGre) is
+    not."""
+
+    @abc.abstractmethod
     def breakaway_force(self, normal_force):
         """Largest friction force [N] the contact holds while stuck (``μs N``)."""
-        raise NotImplementedError(f"{type(self).__name__} has no exact stick–slip mode")
 
+    @abc.abstractmethod
     def kinetic_force(self, speed, normal_force):
         """Friction force magnitude [N] while slipping at ``speed = |Ẋ| >= 0``."""
-        raise NotImplementedError(f"{type(self).__name__} has no exact stick–slip mode")
 
 
 # Sliding speed [m/s] at which the bristle relaxation rate σ0|v|/F is taken for the automatic
@@ -138,7 +151,7 @@ def _exact_and_eps(eps, exact):
     return exact, (DEFAULT_EPS if eps is None else eps)
 
 
-class Coulomb(AbstractFrictionLaw):
+class Coulomb(AbstractStickSlipLaw):
     r"""Coulomb kinetic friction, paper section 3.2, Fig. 9:
 
     $$F_{nl} = \mu N\,\mathrm{sign}(\dot X) \approx \mu N \tanh(\dot X/\varepsilon).$$
@@ -198,7 +211,7 @@ class Coulomb(AbstractFrictionLaw):
         return self.mu * normal_force * jnp.ones_like(speed)
 
 
-class Stribeck(AbstractFrictionLaw):
+class Stribeck(AbstractStickSlipLaw):
     r"""Coulomb friction with a Stribeck static peak, paper section 3.2, Fig. 10:
 
     $$F_{nl} = N\left(\mu_c + (\mu_s-\mu_c)\,e^{-(\dot X/v_s)^2}\right)\mathrm{sign}(\dot X).$$

@@ -1,5 +1,5 @@
-"""How a periodic orbit is found: the base class of ``Shooting`` and
-``Marching`` (objects that carry their own options, passed as ``method=``)."""
+"""How a periodic orbit is found: the base classes of ``Shooting``, ``Marching`` and
+``HarmonicBalance`` (objects that carry their own options, passed as ``method=``)."""
 
 from __future__ import annotations
 
@@ -28,24 +28,6 @@ class AbstractSteadyMethod(eqx.Module):
     def retry(self) -> bool:
         """Whether a failed solve is retried by marching then shooting."""
 
-    @property
-    def chains(self) -> bool:
-        """Whether sweeps hand each point the previous point's orbit and period-map
-        Jacobian (``solve_chained``) instead of solving the points independently
-        (default: False)."""
-        return False
-
-    def chain_jacobian(self, system, forcing, x0, cfg):
-        """The scaled period-map Jacobian at the scaled state ``x0`` that a chain of solves
-        starts from; only methods whose ``chains`` is True implement it."""
-        raise NotImplementedError(f"{type(self).__name__} does not chain")
-
-    def solve_chained(self, system, forcing, x0, jacobian, cfg, *, with_floquet=True):
-        """``(SteadyState, jacobian for the next point)`` from the scaled state ``x0`` with
-        the scaled period-map Jacobian ``jacobian`` of a nearby orbit; only methods whose
-        ``chains`` is True implement it."""
-        raise NotImplementedError(f"{type(self).__name__} does not chain")
-
     def first_pass(self, budget):
         """The method for a sweep's vmapped pass, its iterations capped near ``budget`` so
         that a chunk does not run at the pace of its slowest lane (default: itself)."""
@@ -60,3 +42,24 @@ class AbstractSteadyMethod(eqx.Module):
         """The method that finishes, from their best iterate, the points still iterating
         after ``first_pass(budget)``; None when there is nothing to resume."""
         return None
+
+
+class AbstractChainingMethod(AbstractSteadyMethod):
+    """A steady-state method that can also start a solve from a nearby orbit's period-map
+    Jacobian (a sweep then hands each point its neighbour's orbit and Jacobian instead of
+    solving the points independently)."""
+
+    @property
+    @abc.abstractmethod
+    def chains(self) -> bool:
+        """Whether sweeps chain this method's solves (it may depend on its options)."""
+
+    @abc.abstractmethod
+    def chain_jacobian(self, system, forcing, x0, cfg):
+        """The scaled period-map Jacobian at the scaled state ``x0`` that a chain of solves
+        starts from."""
+
+    @abc.abstractmethod
+    def solve_chained(self, system, forcing, x0, jacobian, cfg, *, with_floquet=True):
+        """``(SteadyState, jacobian for the next point)`` from the scaled state ``x0`` with
+        the scaled period-map Jacobian ``jacobian`` of a nearby orbit."""

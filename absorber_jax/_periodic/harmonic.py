@@ -44,6 +44,7 @@ import jax.numpy as jnp
 from .._core.checks import check_scalar
 from .._core.status import Status
 from .._integration.flow import integrate_flow, state_scale
+from .._systems.base import is_hybrid
 from .base import AbstractSteadyMethod
 from .orbit import SAMPLES_PER_PERIOD, floquet, sample_statistics, steady_of
 
@@ -124,7 +125,7 @@ class HarmonicBalance(AbstractSteadyMethod):
         return system.linear_guess(forcing)
 
     def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
-        if system.hybrid:
+        if is_hybrid(system):
             raise ValueError(
                 "HarmonicBalance needs a vector field to balance: the exact event-driven laws "
                 "(Restitution, exact Coulomb or Stribeck) have none; use aj.Shooting(), or a "

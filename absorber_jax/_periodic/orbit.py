@@ -40,6 +40,7 @@ from .._integration.flow import (
     period_map,
     state_scale,
 )
+from .._systems.base import is_hybrid
 
 SAMPLES_PER_PERIOD = 256
 
@@ -166,7 +167,7 @@ def closures(pen, cyclic=False):
 
 def has_rigid_walls(system):
     """Whether ``system`` has rigid impacts (an event-driven system with contact walls)."""
-    return bool(system.hybrid) and system.penetrations(system.rest_state()).shape[0] > 0
+    return is_hybrid(system) and system.penetrations(system.rest_state()).shape[0] > 0
 
 
 def contact_statistics(system, forcing, x0, s, n, cfg, n_cap=1, *, cyclic=True):

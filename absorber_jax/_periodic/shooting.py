@@ -20,7 +20,7 @@ import optimistix as optx
 from .._core.checks import check_scalar
 from .._core.status import Status
 from .._integration.flow import period_map
-from .base import AbstractSteadyMethod
+from .base import AbstractChainingMethod
 from .orbit import finish_orbit, floquet_matrix, monodromy
 
 
@@ -34,9 +34,54 @@ def _keep_best(best, y, size, valid=True):
             jnp.where(better, size, best[1]))
 
 
-class _KeepsBest:
-    """Mixed into an optimistix Newton or Chord (before it): the iterate with the smallest
-    residual evaluated is kept and returned, converged or not.
+class _Wrapped(optx.AbstractRootFinder):
+    """A root finder that wraps another and delegates its tolerances and norm to it."""
+
+    solver: eqx.AbstractVar[optx.AbstractRootFinder]
+
+    @property
+    def rtol(self):
+        return self.solver.rtol
+
+    @property
+    def atol(self):
+        return self.solver.atol
+
+    @property
+    def norm(self):
+        return self.solver.norm
+
+
+class _GivesUp(_Wrapped):
+    """Wraps an optimistix Newton: it also stops, unconverged, once ``give_up`` steps have
+    left its residual above ``far`` (max-norm): an iterate wandering that far after that
+    many steps is not in Newton's basin, and a solve that will be retried (marching then
+    shooting) loses nothing by stopping there."""
+
+    solver: optx.AbstractRootFinder
+    give_up: int = 8
+    far: float = 1e-2
+
+    def init(self, fn, y, args, options, f_struct, aux_struct, tags):
+        return self.solver.init(fn, y, args, options, f_struct, aux_struct, tags)
+
+    def step(self, fn, y, args, options, state, tags):
+        return self.solver.step(fn, y, args, options, state, tags)
+
+    def terminate(self, fn, y, args, options, state, tags):
+        done, result = self.solver.terminate(fn, y, args, options, state, tags)
+        wander = (state.step >= self.give_up) & (self.norm(state.f) > self.far)
+        return done | wander, optx.RESULTS.where(
+            done, result, optx.RESULTS.where(wander, optx.RESULTS.nonlinear_divergence,
+                                             result))
+
+    def postprocess(self, fn, y, aux, args, options, state, tags, result):
+        return self.solver.postprocess(fn, y, aux, args, options, state, tags, result)
+
+
+class _KeepsBest(_Wrapped):
+    """Wraps an optimistix Newton or Chord (or ``_GivesUp`` around one): the iterate with
+    the smallest residual evaluated is kept and returned, converged or not.
 
     A period map integrated adaptively is noisy at the integration tolerance (an accepted or
     rejected step near a contact moves the end state): on the Hunt–Crossley scene at 40
@@ -47,20 +92,24 @@ class _KeepsBest:
     another decided it); the best one is not.  A converged solve ends on an iterate whose
     residual is within ``atol`` (``0.1 tol`` in ``shoot``): the best one is at least
     that good, so the orbit meets ``tol`` with the same margin, though it forgoes the last
-    (unevaluated) Newton step's further gain on a smooth map."""
+    (unevaluated) Newton step's further gain on a smooth map.  Unlike optimistix's
+    ``BestSoFarRootFinder`` (best by the sum of squares), the exact zero residual that
+    ``_residual`` gives for a failed integration never counts as best."""
+
+    solver: optx.AbstractRootFinder
 
     def init(self, fn, y, args, options, f_struct, aux_struct, tags):
-        inner = super().init(fn, y, args, options, f_struct, aux_struct, tags)
+        inner = self.solver.init(fn, y, args, options, f_struct, aux_struct, tags)
         return inner, (y, jnp.asarray(jnp.inf, dtype=jnp.result_type(float)))
 
     def step(self, fn, y, args, options, state, tags):
         inner, best = state
-        y1, inner, aux = super().step(fn, y, args, options, inner, tags)
+        y1, inner, aux = self.solver.step(fn, y, args, options, inner, tags)
         # the residual of this step's input y (f is evaluated there)
         return y1, (inner, _keep_best(best, y, self.norm(inner.f))), aux
 
     def terminate(self, fn, y, args, options, state, tags):
-        return super().terminate(fn, y, args, options, state[0], tags)
+        return self.solver.terminate(fn, y, args, options, state[0], tags)
 
     def postprocess(self, fn, y, aux, args, options, state, tags, result):
         _, (best_y, best) = state
@@ -68,44 +117,17 @@ class _KeepsBest:
         return y, aux, {}
 
 
-class _Newton(_KeepsBest, optx.Newton):
-    pass
-
-
-class _Chord(_KeepsBest, optx.Chord):
-    pass
-
-
-class _GivingUpNewton(_KeepsBest, optx.Newton):
-    """Newton that also stops, unconverged, once ``give_up`` steps have left its residual
-    above ``far`` (max-norm): an iterate wandering that far after that many steps is not in
-    Newton's basin, and a solve that will be retried (marching then shooting) loses nothing
-    by stopping there."""
-
-    give_up: int = 8
-    far: float = 1e-2
-
-    def terminate(self, fn, y, args, options, state, tags):
-        done, result = super().terminate(fn, y, args, options, state, tags)
-        inner = state[0]
-        wander = (inner.step >= self.give_up) & (self.norm(inner.f) > self.far)
-        return done | wander, optx.RESULTS.where(
-            done, result, optx.RESULTS.where(wander, optx.RESULTS.nonlinear_divergence,
-                                             result))
-
-
 def _root_solver(name, tol, give_up=None):
     if name == "newton":
         # Newton with a minimum-norm (SVD) step: quadratic convergence, and the singular
         # Jacobian of a floating absorber's orbit family is handled by the pseudo-inverse
-        if give_up is not None:
-            return _GivingUpNewton(rtol=tol, atol=tol, linear_solver=lx.SVD(), give_up=give_up)
-        return _Newton(rtol=tol, atol=tol, linear_solver=lx.SVD())
+        newton = optx.Newton(rtol=tol, atol=tol, linear_solver=lx.SVD())
+        return _KeepsBest(newton if give_up is None else _GivesUp(newton, give_up))
     if name == "chord":
         # the Jacobian of the first iterate reused (one monodromy per solve instead of one
         # per Newton step): linear convergence, cheap where the state is large and the
         # guess close (a sweep seeded from its neighbour)
-        return _Chord(rtol=tol, atol=tol, linear_solver=lx.SVD())
+        return _KeepsBest(optx.Chord(rtol=tol, atol=tol, linear_solver=lx.SVD()))
     if name == "lm":
         return optx.LevenbergMarquardt(rtol=tol, atol=tol)
     raise ValueError(f"root solver must be 'newton', 'chord' or 'lm', got {name!r}")
@@ -225,7 +247,7 @@ def shoot_chord(system, forcing, x_guess, jacobian, n, cfg, *, tol=1e-8, steps=4
     return res, jnp.where(res.status == Status.SUCCESS, mono, jacobian)
 
 
-class Shooting(AbstractSteadyMethod):
+class Shooting(AbstractChainingMethod):
     """Newton shooting on the period-``n`` map (minimum-norm SVD steps).
 
     **Arguments**

@@ -26,6 +26,7 @@ from .._systems.base import AbstractSystem
 from .._systems.forcing import at_frequency, sweep_shape
 from .._systems.params import replace_params, resolve
 from .._systems.scales import warn_scales
+from .base import AbstractChainingMethod
 from .orbit import SteadyResults, read_through
 from .steady import (
     SteadyState,
@@ -473,7 +474,7 @@ def _run_parallel(system, om, pvals, names, amp, cfg, method, floquet, direction
     size = int(math.ceil(size / ndev) * ndev)
     first, rest = ((method.first_pass(FIRST_PASS_NEWTON), method.resume(FIRST_PASS_NEWTON))
                    if size > SMALL_CHUNK else (method, None))
-    if method.chains:
+    if isinstance(method, AbstractChainingMethod) and method.chains:
         res = _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size,
                              ndev, progress, len(om))
     else:

@@ -24,7 +24,7 @@ from .._core.checks import as_float, nonnegative, positive
 from .._laws.contact import AbstractContactLaw
 from .._laws.friction import AbstractFrictionLaw
 from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
-from .base import AbstractSystem
+from .base import AbstractHybridSystem
 from .linear import _internal, finite_or_zero, harmonic_response, state_at_zero, two_mass_matrices
 
 # a rigid-impact absorber counts as stuck at a wall at the start of an integration when
@@ -42,7 +42,7 @@ def regime(ts, sliding, period):
     return jnp.where(frac < 0.02, 0, jnp.where(frac > 0.8, 2, 1))
 
 
-class AbstractAbsorberSystem(AbstractSystem):
+class AbstractAbsorberSystem(AbstractHybridSystem):
     """A forced linear primary carrying one absorber through a nonlinear coupling
     (outputs ``x1``, ``x2``; observable ``x1``; stroke ``x2 - x1``)."""
 
@@ -185,9 +185,9 @@ class AbstractAbsorberSystem(AbstractSystem):
         a1, a2, _, zdot = self.accelerations(t, s, forcing)
         return jnp.concatenate([jnp.stack([s[1], a1, s[3], a2 - a1]), zdot])
 
+    @abc.abstractmethod
     def mode_coupling(self, t, s, forcing, mode):
-        """``coupling`` of a hybrid system in a given mode (hybrid systems only)."""
-        raise NotImplementedError
+        """``coupling`` of the hybrid system in a given mode (called only where ``hybrid``)."""
 
     def mechanical_energy(self, s):
         """Kinetic + potential energy [J] of internal state ``s`` (exact contact potential)."""
@@ -580,6 +580,18 @@ class FrictionAbsorber(AbstractAbsorberSystem):
         f = self.holding_force(t, s, forcing)
         new = jnp.where(mode == 0, jnp.where(f > 0, 1, -1), self._holding_mode(t, s, forcing))
         return new, s
+
+    def event_step_limit(self, forcing):
+        return None     # stick–slip switches change sign cleanly: no grazing excursions
+
+    def admissible_state(self, t, s, forcing):
+        return s        # every state is one of a stick or slip mode
+
+    def event_is_impact(self, t, s, forcing, mode):
+        return jnp.zeros((), bool)
+
+    def in_contact(self, mode):
+        return jnp.zeros((), bool)
 
     def law_state_scale(self):
         return self.friction.state_scale(self.normal_force)

@@ -95,56 +95,11 @@ class AbstractSystem(eqx.Module):
         at ``ts``."""
         return {"coupling_force": jnp.zeros((ts.shape[0], 0))}
 
-    # -- exact nonsmooth (hybrid) dynamics: see absorber_jax._integration.stickslip --------------
-    @property
-    def hybrid(self) -> bool:
-        """``True`` when integrated by switching modes at events (exact stick–slip, rigid
-        impacts)."""
-        return False
-
     def condensation(self):
         """The linear part and the nonlinear forces that harmonic balance condenses onto the
         degrees of freedom where the forces act (a ``Condensation``), or ``None`` where the
         system does not separate so (the default)."""
         return None
-
-    def mode_of(self, t, s, forcing):
-        """Integer mode of internal state ``s`` at time ``t`` (hybrid systems only)."""
-        raise NotImplementedError
-
-    def mode_rate(self, t, s, forcing, mode):
-        """d/dt of ``s`` within ``mode`` (hybrid systems only)."""
-        raise NotImplementedError
-
-    def switch_function(self, t, s, forcing, mode):
-        """Leaves ``mode`` where this crosses zero upwards (hybrid systems only)."""
-        raise NotImplementedError
-
-    def next_mode(self, t, s, forcing, mode):
-        """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
-        raise NotImplementedError
-
-    def event_step_limit(self, forcing):
-        """The longest integrator step [s] of a hybrid integration (``None``: no limit).  An
-        event is located from a sign change of the switching function at the ends of a step,
-        so a switch crossed and crossed back within one step (a rigid wall grazed) is not
-        seen; a limit bounds how deep such an excursion can be."""
-        return None
-
-    def admissible_state(self, t, s, forcing):
-        """Internal state ``s`` at the start of a hybrid integration, mapped into the set the
-        modes are defined on (a rigid contact: no penetration), continuously and smooth to
-        first order at its boundary; the identity unless overridden."""
-        return s
-
-    def event_is_impact(self, t, s, forcing, mode):
-        """Whether the switch leaving ``mode`` at ``(t, s)`` (the state before it) is an
-        impact (counted per period)."""
-        return jnp.zeros((), bool)
-
-    def in_contact(self, mode):
-        """Whether a contact is held closed in ``mode`` (time in contact)."""
-        return jnp.zeros((), bool)
 
     # -- what is measured ---------------------------------------------------------------
     @property
@@ -204,3 +159,60 @@ class AbstractSystem(eqx.Module):
         dataset attributes.  Default: the outputs are displacements [m], the first the
         observable, the second an absorber on it."""
         return units.generic_signals(self)
+
+
+class AbstractHybridSystem(AbstractSystem):
+    """A system that can be integrated exactly as a hybrid system: modes, each with a
+    smooth vector field, left where a switching function crosses zero upwards, with a jump
+    map at each switch (exact stick–slip, rigid impacts; see
+    ``absorber_jax._integration.stickslip``).  Whether it is, ``hybrid``, depends on the
+    laws it is built with (an exact Coulomb law, a ``Restitution`` contact): with smooth or
+    compliant laws it is an ordinary ODE and none of the other members is called."""
+
+    @property
+    @abc.abstractmethod
+    def hybrid(self) -> bool:
+        """``True`` when integrated by switching modes at events."""
+
+    @abc.abstractmethod
+    def mode_of(self, t, s, forcing):
+        """Integer mode (or per-element modes) of internal state ``s`` at time ``t``."""
+
+    @abc.abstractmethod
+    def mode_rate(self, t, s, forcing, mode):
+        """d/dt of ``s`` within ``mode``."""
+
+    @abc.abstractmethod
+    def switch_function(self, t, s, forcing, mode):
+        """Leaves ``mode`` where this crosses zero upwards (dimensionless)."""
+
+    @abc.abstractmethod
+    def next_mode(self, t, s, forcing, mode):
+        """``(new mode, projected state)`` after ``mode``'s switch fired at ``(t, s)``."""
+
+    @abc.abstractmethod
+    def event_step_limit(self, forcing):
+        """The longest integrator step [s] of a hybrid integration (``None``: no limit).  An
+        event is located from a sign change of the switching function at the ends of a step,
+        so a switch crossed and crossed back within one step (a rigid wall grazed) is not
+        seen; a limit bounds how deep such an excursion can be."""
+
+    @abc.abstractmethod
+    def admissible_state(self, t, s, forcing):
+        """Internal state ``s`` at the start of a hybrid integration, mapped into the set the
+        modes are defined on (a rigid contact: no penetration), continuously and smooth to
+        first order at its boundary (the identity where every state is admissible)."""
+
+    @abc.abstractmethod
+    def event_is_impact(self, t, s, forcing, mode):
+        """Whether the switch leaving ``mode`` at ``(t, s)`` (the state before it) is an
+        impact (counted per period)."""
+
+    @abc.abstractmethod
+    def in_contact(self, mode):
+        """Whether a contact is held closed in ``mode`` (time in contact)."""
+
+
+def is_hybrid(system) -> bool:
+    """Whether ``system`` is integrated as a hybrid system (switching modes at events)."""
+    return isinstance(system, AbstractHybridSystem) and bool(system.hybrid)

@@ -30,7 +30,7 @@ import numpy as np
 from .._core import units
 from .._core.checks import is_traced
 from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
-from .base import AbstractSystem
+from .base import AbstractHybridSystem
 from .elements import AbstractElement, is_exact, is_rigid
 from .linear import finite_or_zero
 from .structure import LinearStructure
@@ -129,7 +129,7 @@ def _all_diagonal(*mats) -> bool:
     return all(not np.any(np.asarray(m) - np.diag(np.diag(np.asarray(m)))) for m in mats)
 
 
-class StructuralSystem(AbstractSystem):
+class StructuralSystem(AbstractHybridSystem):
     r"""A linear structure with elements attached, forced by ``F(t) · load`` or shaken at its
     support.
 

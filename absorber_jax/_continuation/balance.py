@@ -5,9 +5,10 @@ coefficients of the orbit's state and the parameter.
 full balance) over the state scale ``s`` at the start, and the parameter over its start value.
 The residual is the balance's, ``R(c; p)`` (``HarmonicBalance.residual``); the corrector is
 Newton on ``[R; t·(z - z_pred)] = 0`` as for shooting (``problem._corrector``); the next
-tangent is the null vector of ``[∂R/∂c, ∂R/∂p]`` and the multipliers come from ``∂R/∂c`` by
-Hill's method (``hill_multipliers``), so the fold, period-doubling and Neimark–Sacker test
-functions of the shooting branch apply unchanged (``events``).  The driver here answers the
+tangent is the null vector of ``[∂R/∂c, ∂R/∂p]``; the multipliers come from the monodromy at
+the orbit's state or from ``∂R/∂c`` by Hill's method (``HarmonicBalance.stability``), so the
+fold, period-doubling and Neimark–Sacker test functions of the shooting branch apply
+unchanged (``events``).  The driver here answers the
 same requests as ``driver._Driver`` (``_follow`` serves both): its orbits have no Poincaré
 section to move, and its unknowns are rescaled state by state to the orbit's size.
 """
@@ -20,10 +21,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.status import Status
+from .._integration.flow import Config, state_scale
 from .._periodic.harmonic import (
     HarmonicBalance,
     fourier_matrices,
-    hill_multipliers,
     newton_solve,
     steady_from_series,
 )
@@ -41,6 +42,7 @@ class _BalanceProblem(eqx.Module):
     s0: jax.Array
     pscale: jax.Array
     balance: HarmonicBalance
+    cfg: Config
     parameter: str = eqx.field(static=True)
     n: int = eqx.field(static=True, default=1)
 
@@ -62,7 +64,8 @@ def _balance_corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     """Newton on ``[R(z); t_prev·(z - z_pred)] = 0`` from ``z_pred`` (steps by the balance's
     own ``newton_solve``), stopped where the residual has not halved over two steps (a
     ``patient`` first orbit: the whole budget); returns the point, its tangent, its
-    ``SteadyState`` (Hill multipliers) and its internal state at ``t = 0``."""
+    ``SteadyState`` (multipliers as the balance's ``stability`` asks) and its internal state
+    at ``t = 0``."""
     m = z_pred.shape[0] - 1
 
     def evaluate(z):
@@ -99,8 +102,11 @@ def _balance_corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     t = t / jnp.linalg.norm(t)
     t = t * jnp.where(t @ t_prev < 0, -1.0, 1.0)
     sysp, forcp = prob.at(z[-1])
-    mult = hill_multipliers(J[:, :m], prob.balance.harmonics, forcp.omega, forcp.period)
     c = prob.series(z) * prob.s0
+    # Hill's method on the balance's Jacobian in the unknowns (a diagonal rescaling of the
+    # states leaves its eigenvalues as they are), or the monodromy at the orbit's state
+    mult = prob.balance.multipliers(sysp, forcp, c / state_scale(sysp, forcp),
+                                    lambda: J[:, :m], prob.cfg)
     ss = steady_from_series(sysp, forcp, c, mult, status, res, k - 1)
     x0 = fourier_matrices(prob.balance.harmonics, 1)[0][0] @ c
     return z, t, ss, x0

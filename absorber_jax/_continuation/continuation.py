@@ -153,7 +153,8 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     if orbit is not None:
         _check_balance(system, orbit, n, start)
         prob = _BalanceProblem(system=system, forcing=forcing, s0=s0,
-                               pscale=jnp.asarray(pscale), balance=orbit, parameter=parameter)
+                               pscale=jnp.asarray(pscale), balance=orbit, cfg=cfg,
+                               parameter=parameter)
         drv = _BalanceDriver(prob, method, (lo, hi))
         g = (system.linear_guess(forcing) if guess is None
              else system.to_internal(jnp.asarray(guess, dtype=float)))

@@ -337,6 +337,47 @@ def test_nlvib03_bifurcations_match_the_exact_continuation(nlvib_branch):
     assert abs(q2.max() - ex["peak_Q2"]) < 2e-3 * ex["peak_Q2"]
 
 
+def test_harmonic_balance_labels_along_nlvib03_equal_the_floquet_labels(nlvib_branch):
+    """Stability of harmonic-balance orbits along NLvib example 03's branch: at every point
+    of the shooting branch more than 3e-3 from the exact bifurcations,
+    ``HarmonicBalance(harmonics=21, condense=False)`` from that orbit's state converges (at
+    90 % of them or more; a failure is flagged, never labelled) to an orbit near
+    shooting's (the unilateral spring's kink: algebraic convergence in H), labelled as
+    the shooting orbit's Floquet multipliers label it, in every window: stable, the saddle
+    branch between the folds (a multiplier beyond +1), the flip window (beyond -1) and the
+    Neimark–Sacker window (a complex pair outside the circle)."""
+    sysm, br = nlvib_branch
+    ex = ref03.continuation()
+    exact = np.array([f["Omega"] for f in ex["folds"]]
+                     + [c["Omega"] for c in ex["stability_changes"]])
+    values, states = np.asarray(br.values), np.asarray(br.states)
+    far = np.flatnonzero(np.min(np.abs(values[:, None] - exact[None, :]), axis=1) > 3e-3)
+    method = aj.HarmonicBalance(harmonics=21, condense=False)
+    ok, same, kinds, gaps = [], [], set(), []
+    for i in far:
+        ss = aj.steady_state(sysm, aj.Harmonic(amplitude=0.1, omega=float(values[i])),
+                             method=method, guess=states[i])
+        converged = int(ss.status) == 0
+        ok.append(converged)
+        if not converged:
+            assert not bool(ss.stable)           # a failed point is never called stable
+            continue
+        shoot_stable = bool(br.stable[i])
+        same.append(bool(ss.stable) == shoot_stable)
+        gaps.append(abs(float(ss.amplitude) / float(br.amplitude[i]) - 1))
+        mu = np.asarray(br.multipliers[i])
+        out = mu[np.abs(mu) > 1 + 1e-6]
+        kinds.add("stable" if shoot_stable else
+                  "neimark_sacker" if np.any(np.abs(out.imag) > 1e-6) else
+                  "flip" if np.any(out.real < 0) else "saddle")
+    print(f"{len(far)} points: {sum(ok)} converged, labels equal at {sum(same)}, "
+          f"largest amplitude gap {max(gaps):.1e}, windows {sorted(kinds)}")
+    assert np.mean(ok) >= 0.9
+    assert all(same)
+    assert kinds == {"stable", "saddle", "flip", "neimark_sacker"}
+    assert max(gaps) < 1e-2          # measured 2.6e-3
+
+
 @pytest.mark.slow  # CI time (the bifurcations of the same branch are asserted in CI)
 def test_period_doubling_branch_switching(nlvib_branch):
     """At the flip of NLvib 03 the period-2 branch is reached by branch switching; it spans
@@ -466,7 +507,7 @@ def test_a_harmonic_balance_branch_has_shootings_folds_and_floquet_labels():
     forcing = aj.Harmonic(amplitude=5.0, omega=25.0)
     shoot = aj.continuation(duffing, forcing, "omega", bounds=(25.0, 70.0))
     hb = aj.continuation(duffing, forcing, "omega", bounds=(25.0, 70.0),
-                         orbit=aj.HarmonicBalance(harmonics=9))
+                         orbit=aj.HarmonicBalance(harmonics=9, stability="hill"))
     assert hb.termination == "bounds" and np.all(hb.ok)
     folds = sorted(b.value for b in hb.of_kind("fold"))
     ref = sorted(b.value for b in shoot.of_kind("fold"))

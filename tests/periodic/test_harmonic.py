@@ -26,7 +26,8 @@ def test_one_harmonic_is_exact_on_a_linear_oscillator():
     structure = aj.structure_from_matrices([[m]], [[k]], damping=[[c]], dof_names=["x"])
     system = aj.StructuralSystem(structure, [], load="x")
     ss = aj.steady_state(system, aj.Harmonic(amplitude=F0, omega=omega),
-                         method=aj.HarmonicBalance(harmonics=1, tol=1e-13, condense=False))
+                         method=aj.HarmonicBalance(harmonics=1, tol=1e-13, condense=False,
+                                                   stability="hill"))
     X = F0 / (k - m * omega**2 + 1j * c * omega)
     assert int(ss.status) == 0
     assert abs(float(ss.harmonic) / abs(X) - 1) < 1e-12
@@ -56,7 +57,7 @@ def test_harmonic_balance_converges_exponentially_to_shooting_on_a_duffing_oscil
     for H in Hs:
         ss = aj.steady_state(duffing(), forcing, guess=guess,
                              method=aj.HarmonicBalance(harmonics=int(H), tol=1e-12,
-                                                       condense=False))
+                                                       condense=False, stability="hill"))
         assert int(ss.status) == 0
         errors.append(abs(float(ss.amplitude) / float(ref.amplitude) - 1))
         # Hill's method labels it unstable at every truncation, as Floquet does
@@ -75,7 +76,7 @@ def test_hill_stability_agrees_with_floquet_across_a_duffing_response():
     a = aj.frequency_response(duffing(), omegas, amplitude=F0, **TIGHT)
     b = aj.frequency_response(duffing(), omegas, amplitude=F0,
                               method=aj.HarmonicBalance(harmonics=9, tol=1e-12,
-                                                        condense=False))
+                                                        condense=False, stability="hill"))
     assert np.all(np.asarray(a.status) == 0) and np.all(np.asarray(b.status) == 0)
     # the same orbits (both from the linear response: the lower branch past the fold)
     assert np.allclose(np.asarray(b.amplitude), np.asarray(a.amplitude), rtol=1e-6)
@@ -137,7 +138,7 @@ def test_condensed_and_full_balances_give_the_same_orbit_on_a_beam_with_a_fricti
     system = beam_with_friction_damper()
     forcing = aj.Harmonic(amplitude=2.0, omega=3.516 * np.sqrt(50.0))    # first mode
     full = aj.steady_state(system, forcing, method=aj.HarmonicBalance(
-        harmonics=7, tol=1e-8, condense=False))
+        harmonics=7, tol=1e-8, condense=False, stability="hill"))
     cond = aj.steady_state(system, forcing, method=aj.HarmonicBalance(harmonics=7, tol=1e-12))
     assert int(full.status) == 0 and int(cond.status) == 0
     size = np.max(np.abs(np.asarray(full.state)))

@@ -46,6 +46,7 @@ from ._laws.contact import (  # noqa: E402
 )
 from ._laws.friction import (  # noqa: E402
     AbstractFrictionLaw,
+    AbstractMemorylessFrictionLaw,
     AbstractStickSlipLaw,
     Coulomb,
     Dahl,
@@ -94,6 +95,7 @@ from ._systems.elements import (  # noqa: E402
 from ._systems.forcing import (  # noqa: E402
     AbstractForcing,
     AbstractPeriodicForcing,
+    AbstractSampledPeriodicForcing,
     Harmonic,
     MultiHarmonic,
     PeriodicForcing,
@@ -117,7 +119,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Integrator",
     "AbstractAbsorberSystem", "AbstractContactLaw", "AbstractForcing", "AbstractFrictionLaw",
-    "AbstractStickSlipLaw",
+    "AbstractMemorylessFrictionLaw", "AbstractStickSlipLaw",
     "Coulomb", "Dahl", "FrictionAbsorber", "Harmonic", "Hertz", "HuntCrossley",
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
     "FrequencyResponse", "SteadyState", "frequency_response", "Shooting", "Marching",
@@ -140,7 +142,8 @@ __all__ = [
     "hunt_crossley_damping", "linear_contact_time", "linear_restitution", "objectives",
     "presets", "simulate",
     "use_cpu_cores",
-    "AbstractPeriodicForcing", "MultiHarmonic", "PeriodicForcing", "BaseExcitation",
+    "AbstractPeriodicForcing", "AbstractSampledPeriodicForcing", "MultiHarmonic",
+    "PeriodicForcing", "BaseExcitation",
     "AbstractAbsorber", "AbstractCompliantLaw", "Restitution", "restitution_of",
     "study", "StudyResult", "questions", "AbstractDesigns", "Grid", "Designs", "MonteCarlo",
     "LatinHypercube", "AbstractDistribution", "Uniform", "Normal",

@@ -68,6 +68,9 @@ class Counting(aj.questions.AbstractQuestion):
     def points(self, system):
         return self.inner.points(system)
 
+    def describe(self):
+        return "counting " + self.inner.describe()
+
     def compute(self, system, params):
         with open(self.log + ".start", "a") as f:
             f.write(f"{os.getpid()} {next(iter(params.values()))[0]!r}\n")

@@ -37,9 +37,9 @@ class AbstractContactLaw(eqx.Module):
     # (absorber_jax._integration.stickslip)
     exact: eqx.AbstractClassVar[bool]
 
+    @abc.abstractmethod
     def field_unit(self, field: str) -> str:
-        """SI unit of the law's parameter field ``field`` (``eps``: a penetration [m])."""
-        return "m" if field == "eps" else units.field_unit(field)
+        """SI unit of the law's parameter field ``field``."""
 
     @abc.abstractmethod
     def wall_force(self, x, rate):
@@ -98,6 +98,7 @@ class AbstractCompliantLaw(AbstractContactLaw):
 
     exact: ClassVar[bool] = False
     exponent: ClassVar[float]  # power of δ in the elastic term
+    damping_unit: ClassVar[str] = "N s/m"   # of the damping field
 
     stiffness: eqx.AbstractVar[object]
     damping: eqx.AbstractVar[object]
@@ -105,12 +106,12 @@ class AbstractCompliantLaw(AbstractContactLaw):
     adhesive: eqx.AbstractVar[bool]
 
     def field_unit(self, field: str) -> str:
-        """``stiffness`` [N/m^exponent], ``damping`` [N s/m], ``eps`` [m]."""
+        """``stiffness`` [N/m^exponent], ``damping`` [``damping_unit``], ``eps`` [m]."""
         if field == "stiffness":
             return "N/m" if float(self.exponent) == 1.0 else f"N/m^{float(self.exponent):g}"
         if field == "damping":
-            return "N s/m"
-        return super().field_unit(field)
+            return self.damping_unit
+        return "m" if field == "eps" else units.field_unit(field)
 
     @abc.abstractmethod
     def elastic_force(self, delta):
@@ -327,6 +328,7 @@ class HuntCrossley(_AbstractHertzian):
     ```
     """
 
+    damping_unit: ClassVar[str] = "N s/m^2.5"
     stiffness: object = eqx.field(converter=as_float)
     damping: object = eqx.field(converter=as_float, default=0.0)
     eps: object = eqx.field(converter=as_float, default=1e-6)
@@ -335,9 +337,6 @@ class HuntCrossley(_AbstractHertzian):
     def viscous_force(self, delta, delta_dot):
         return self.damping * delta**1.5 * delta_dot
 
-    def field_unit(self, field: str) -> str:
-        """As the compliant laws, with ``damping`` [N s/m^2.5]."""
-        return "N s/m^2.5" if field == "damping" else super().field_unit(field)
 
 
 CONTACT_LAWS = {"kelvin_voigt": KelvinVoigt, "hertz": Hertz, "hunt_crossley": HuntCrossley}

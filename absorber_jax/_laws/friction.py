@@ -30,7 +30,7 @@ class AbstractFrictionLaw(eqx.Module):
     (0 for Coulomb and Stribeck, 1 for Dahl and LuGre).
     """
 
-    num_states: ClassVar[int] = 0
+    num_states: ClassVar[int]
     # True: the law is the nonsmooth eps -> 0 limit, integrated by switching between stick
     # and slip at events (see absorber_jax._integration.stickslip)
     exact: eqx.AbstractVar[bool]
@@ -46,22 +46,22 @@ class AbstractFrictionLaw(eqx.Module):
         """Friction force [N] at sliding velocity ``v`` and internal state ``z``
         (an array of shape ``(num_states,)``)."""
 
+    @abc.abstractmethod
     def state_rate(self, v, z, normal_force):
-        """Time derivative of the internal state (empty for memoryless laws)."""
-        return jnp.zeros((0,), dtype=jnp.result_type(v))
+        """Time derivative of the internal state."""
 
     def field_unit(self, field: str) -> str:
         """SI unit of the law's parameter field ``field`` (``eps``: a sliding velocity
         [m/s]; ``mu`` 1, ``sigma0`` [N/m] ...)."""
         return "m/s" if field == "eps" else units.field_unit(field)
 
+    @abc.abstractmethod
     def stored_energy(self, z):
-        """Elastic energy [J] held in the internal state (zero for memoryless laws)."""
-        return jnp.zeros((), dtype=jnp.result_type(float))
+        """Elastic energy [J] held in the internal state."""
 
+    @abc.abstractmethod
     def dissipated_power(self, v, z, normal_force):
         """Power [W] the law dissipates: ``Fnl·v - d/dt stored_energy``."""
-        return self.force(v, z, normal_force) * v
 
     @abc.abstractmethod
     def steady_force(self, v, normal_force):
@@ -76,12 +76,11 @@ class AbstractFrictionLaw(eqx.Module):
     def stiffness_rate(self, normal_force, meff):
         """A rough largest rate [1/s] the law adds to the dynamics (solver choice)."""
 
+    @abc.abstractmethod
     def oscillation_rate(self, normal_force, meff):
         """Angular frequency [rad/s] of a lightly damped fast oscillation the law adds (a
         bristle mode), which any solver must resolve step by step at tight tolerances
         (solver choice; 0 when the law has none)."""
-        del normal_force, meff
-        return jnp.zeros(())
 
     def initial_state(self):
         return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
@@ -90,12 +89,36 @@ class AbstractFrictionLaw(eqx.Module):
     def kinetic_level(self, normal_force):
         """Kinetic (Coulomb) level ``μc N`` [N] of the friction force in gross sliding."""
 
+    @abc.abstractmethod
     def state_scale(self, normal_force):
-        """Natural size of the internal states (empty for memoryless laws)."""
-        return jnp.zeros((self.num_states,))
+        """Natural size of the internal states."""
 
 
-class AbstractStickSlipLaw(AbstractFrictionLaw):
+class AbstractMemorylessFrictionLaw(AbstractFrictionLaw):
+    """A friction law without internal states: the force is a function of the sliding
+    velocity and the normal force alone (Coulomb, Stribeck, or one's own), so nothing is
+    stored, the power dissipated is ``Fnl·v`` and no bristle mode is added."""
+
+    num_states: ClassVar[int] = 0
+
+    def state_rate(self, v, z, normal_force):
+        return jnp.zeros((0,), dtype=jnp.result_type(v))
+
+    def stored_energy(self, z):
+        return jnp.zeros((), dtype=jnp.result_type(float))
+
+    def dissipated_power(self, v, z, normal_force):
+        return self.force(v, z, normal_force) * v
+
+    def oscillation_rate(self, normal_force, meff):
+        del normal_force, meff
+        return jnp.zeros(())
+
+    def state_scale(self, normal_force):
+        return jnp.zeros((0,))
+
+
+class AbstractStickSlipLaw(AbstractMemorylessFrictionLaw):
     """A memoryless friction law (no internal state) that can also be integrated exactly:
     with ``exact=True`` the contact switches between stick and slip at events (see
     ``absorber_jax._integration.stickslip``), and the law gives the two levels those events

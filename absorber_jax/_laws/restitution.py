@@ -31,6 +31,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._core import units
 from .._core.checks import as_float, check_scalar, positive
 from .contact import AbstractCompliantLaw, AbstractContactLaw
 
@@ -71,6 +72,10 @@ class Restitution(AbstractContactLaw):
 
     def __check_init__(self):
         check_scalar("Restitution", "e", self.e, lo=0.0, hi=1.0)
+
+    def field_unit(self, field: str) -> str:
+        """SI unit of the law's parameter field ``field`` (``e``: 1)."""
+        return units.field_unit(field)
 
     def impulse(self, w, meff):
         """Normal impulse [N s] of an impact at relative normal velocity ``w`` [m/s] (into

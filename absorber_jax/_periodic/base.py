@@ -28,20 +28,21 @@ class AbstractSteadyMethod(eqx.Module):
     def retry(self) -> bool:
         """Whether a failed solve is retried by marching then shooting."""
 
+    @abc.abstractmethod
     def first_pass(self, budget):
         """The method for a sweep's vmapped pass, its iterations capped near ``budget`` so
-        that a chunk does not run at the pace of its slowest lane (default: itself)."""
-        return self
+        that a chunk does not run at the pace of its slowest lane (itself where it has no
+        such cap)."""
 
+    @abc.abstractmethod
     def giving_up(self, steps):
         """The method for a single solve that will be retried: it may stop early where its
-        iterations wander (default: itself)."""
-        return self
+        iterations wander (itself where it cannot)."""
 
+    @abc.abstractmethod
     def resume(self, budget):
         """The method that finishes, from their best iterate, the points still iterating
         after ``first_pass(budget)``; None when there is nothing to resume."""
-        return None
 
 
 class AbstractChainingMethod(AbstractSteadyMethod):

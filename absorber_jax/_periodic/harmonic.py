@@ -126,6 +126,15 @@ class HarmonicBalance(AbstractSteadyMethod):
     def retry(self) -> bool:
         return False
 
+    def first_pass(self, budget):
+        return self     # its iterations are not capped
+
+    def giving_up(self, steps):
+        return self     # it is not retried
+
+    def resume(self, budget):
+        return None
+
     @property
     def time_samples(self) -> int:
         """Samples per period of the frequency–time scheme."""

@@ -165,6 +165,15 @@ class Marching(AbstractSteadyMethod):
     def retry(self):
         return False
 
+    def first_pass(self, budget):
+        return self     # its iterations are not capped
+
+    def giving_up(self, steps):
+        return self     # it is not retried
+
+    def resume(self, budget):
+        return None
+
     def initial_state(self, system, forcing):
         return system.rest_state()
 

@@ -67,9 +67,9 @@ class AbstractDesigns(eqx.Module):
         """The number of designs ``P``."""
         return int(next(iter(self.table(system).values())).shape[0])
 
+    @abc.abstractmethod
     def describe(self) -> str:
         """A one-line description (stored with a study's results)."""
-        return repr(self)
 
 
 class Grid(AbstractDesigns):

@@ -52,13 +52,13 @@ class AbstractQuestion(eqx.Module):
     def compute(self, system, params: dict) -> dict:
         """The answer for the designs ``params`` (``{name: (P,) values}``)."""
 
+    @abc.abstractmethod
     def points(self, system) -> int:
         """Solves per design (progress counts these)."""
-        return 1
 
+    @abc.abstractmethod
     def describe(self) -> str:
         """A one-line description (stored with a study's results)."""
-        return repr(self)
 
 
 def _design_system(system, params, i):
@@ -190,6 +190,9 @@ class ExactPeak(AbstractQuestion):
     def variables(self, system):
         return _peak_variables(system, "peak", located=True)
 
+    def points(self, system):
+        return 1        # one peak search per design
+
     def describe(self):
         return (f"ExactPeak(band {self.band[0]:g}..{self.band[1]:g} rad/s, amplitude "
                 f"{_force(self.amplitude)}, objective {self.objective!r})")
@@ -228,6 +231,9 @@ class RobustPeak(AbstractQuestion):
 
     def variables(self, system):
         return _peak_variables(system, "robust peak", located=False)
+
+    def points(self, system):
+        return 1        # one peak search per design
 
     def describe(self):
         return (f"RobustPeak(band {self.band[0]:g}..{self.band[1]:g} rad/s, amplitude "

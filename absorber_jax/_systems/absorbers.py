@@ -20,6 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._core import units
 from .._core.checks import as_float, nonnegative, positive
 from .._laws.contact import AbstractContactLaw
 from .._laws.friction import AbstractFrictionLaw
@@ -57,8 +58,9 @@ class AbstractAbsorberSystem(AbstractHybridSystem):
         """Mass of the absorber [kg]."""
 
     @property
+    @abc.abstractmethod
     def num_law_states(self) -> int:
-        return 0
+        """Internal states of the coupling law (bristle deflections; 0 when none)."""
 
     @property
     def num_states(self) -> int:
@@ -81,23 +83,18 @@ class AbstractAbsorberSystem(AbstractHybridSystem):
     def stiffness_rate(self):
         """Rough largest rate [1/s] of the linearised dynamics (solver choice)."""
 
-    def oscillation_rate(self):
-        """Angular frequency [rad/s] of a fast, lightly damped oscillation of the coupling
-        that any solver must resolve at tight tolerances (solver choice; 0 when none)."""
-        return jnp.zeros(())
-
     @abc.abstractmethod
     def linear_guess(self, forcing):
         """A starting orbit for shooting from the linear limits of the scene (internal
         state at ``t = 0``)."""
 
+    @abc.abstractmethod
     def length_floor(self):
         """Smallest natural length [m] of the motion (the clearance of an impact absorber)."""
-        return jnp.zeros(())
 
+    @abc.abstractmethod
     def law_state_scale(self):
         """Natural size of the law's internal states (empty when it has none)."""
-        return jnp.zeros((self.num_law_states,))
 
     @property
     def state_names(self) -> tuple:
@@ -119,9 +116,9 @@ class AbstractAbsorberSystem(AbstractHybridSystem):
     def floating_pairs(self, stroke_max):
         return self.floats(stroke_max[0]).astype(int)
 
+    @abc.abstractmethod
     def aliases(self) -> dict:
         """Parameter names of the paper mapped to field paths."""
-        return {}
 
     def parameter_path(self, name: str) -> str:
         return self.aliases().get(name, name)
@@ -131,15 +128,21 @@ class AbstractAbsorberSystem(AbstractHybridSystem):
                  if f.init and f.name not in ("contact", "friction")]
         return names + list(self.aliases())
 
-    def trajectory_fields(self, ts, s, forcing):
-        _, _, fp, _ = jax.vmap(lambda t, si: self.accelerations(t, si, forcing))(ts, s)
-        return {"coupling_force": fp}
-
+    @abc.abstractmethod
     def floats(self, u_max):
         """True when, on an orbit whose relative motion stays within ``|u| <= u_max``, the
         absorber's position is free (a structural Floquet multiplier 1, not a loss of
         stability)."""
-        return jnp.zeros((), bool)
+
+    def condensation(self):
+        return None     # the coupling acts on the relative coordinate, not a structure's DOF
+
+    @property
+    def force_names(self) -> tuple:
+        return ()
+
+    def signals(self):
+        return units.generic_signals(self)
 
     def state_scale(self, forcing):
         """Per-component scale of the internal state, ``[L, Lω, L, Lω, z...]`` with
@@ -276,6 +279,20 @@ class ImpactAbsorber(AbstractAbsorberSystem):
 
     def length_floor(self):
         return self.gap
+
+    @property
+    def num_law_states(self) -> int:
+        return 0
+
+    def law_state_scale(self):
+        return jnp.zeros((0,))
+
+    def oscillation_rate(self):
+        return jnp.zeros(())    # the contact adds no lightly damped fast mode of its own
+
+    def trajectory_fields(self, ts, s, forcing):
+        _, _, fp, _ = jax.vmap(lambda t, si: self.accelerations(t, si, forcing))(ts, s)
+        return {"coupling_force": fp}
 
     def aliases(self) -> dict:
         if self.contact.exact:
@@ -485,6 +502,15 @@ class FrictionAbsorber(AbstractAbsorberSystem):
     @property
     def num_law_states(self) -> int:
         return self.friction.num_states
+
+    def length_floor(self):
+        return jnp.zeros(())
+
+    def floats(self, u_max):
+        return jnp.zeros((), bool)      # its spring k2 ties it to the primary
+
+    def penetrations(self, s):
+        return jnp.zeros((0,), dtype=jnp.result_type(s))
 
     def aliases(self) -> dict:
         law = {f.name: "friction." + f.name for f in dataclasses.fields(self.friction)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import abc
 
 import equinox as eqx
-import jax.numpy as jnp
 
 from .._core import units
 
@@ -47,17 +46,17 @@ class AbstractSystem(eqx.Module):
     def state_names(self) -> tuple:
         """Names of the public state's components, in order."""
 
+    @abc.abstractmethod
     def to_internal(self, y):
-        """Public state -> the integrator's state (identity unless overridden)."""
-        return jnp.asarray(y)
+        """Public state -> the integrator's state."""
 
+    @abc.abstractmethod
     def to_public(self, s):
         """The integrator's state (with any leading batch axes) -> public state."""
-        return jnp.asarray(s)
 
+    @abc.abstractmethod
     def rest_state(self):
         """Internal state at rest."""
-        return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
 
     @abc.abstractmethod
     def state_scale(self, forcing):
@@ -84,22 +83,22 @@ class AbstractSystem(eqx.Module):
     def stiffness_rate(self):
         """Rough largest rate [1/s] of the linearised dynamics (solver choice)."""
 
+    @abc.abstractmethod
     def oscillation_rate(self):
         """Angular frequency [rad/s] of a fast, lightly damped internal oscillation that any
         solver must resolve at tight tolerances (solver choice; 0 when none)."""
-        return jnp.zeros(())
 
+    @abc.abstractmethod
     def trajectory_fields(self, ts, s, forcing):
         """Extra per-instant fields of a simulated [`Trajectory`][absorber_jax.Trajectory]
         (``coupling_force`` and, where they apply, friction diagnostics) from internal states ``s``
         at ``ts``."""
-        return {"coupling_force": jnp.zeros((ts.shape[0], 0))}
 
+    @abc.abstractmethod
     def condensation(self):
         """The linear part and the nonlinear forces that harmonic balance condenses onto the
         degrees of freedom where the forces act (a ``Condensation``), or ``None`` where the
-        system does not separate so (the default)."""
-        return None
+        system does not separate so."""
 
     # -- what is measured ---------------------------------------------------------------
     @property
@@ -116,26 +115,26 @@ class AbstractSystem(eqx.Module):
         """The scalar signal whose amplitude, RMS and harmonic a result reports and the
         design objectives minimise."""
 
+    @abc.abstractmethod
     def strokes(self, s):
         """Each absorber's displacement relative to its host (empty when none)."""
-        return jnp.zeros((0,), dtype=jnp.result_type(s))
 
+    @abc.abstractmethod
     def penetrations(self, s):
         """Signed penetration [m] of each contact wall at internal state ``s`` (``> 0``
         while that wall is closed), in a fixed order; empty when the system has no contact.
         Impacts are counted from its sign changes (attractor statistics)."""
-        return jnp.zeros((0,), dtype=jnp.result_type(s))
 
+    @abc.abstractmethod
     def floating_pairs(self, stroke_max):
         """How many absorbers float on an orbit whose strokes stay within ``stroke_max``
         (each gives a structural double Floquet multiplier 1, not a loss of stability)."""
-        return jnp.zeros((), int)
 
     # -- named parameters ---------------------------------------------------------------
+    @abc.abstractmethod
     def parameter_path(self, name: str) -> str:
         """Dotted field path of parameter ``name`` (aliases resolved; integers index
         tuples).  Unknown names are caught by the caller."""
-        return name
 
     @abc.abstractmethod
     def parameter_names(self) -> list:
@@ -147,18 +146,17 @@ class AbstractSystem(eqx.Module):
         return units.field_unit(field)
 
     @property
+    @abc.abstractmethod
     def force_names(self) -> tuple:
         """Names of the columns of a trajectory's ``coupling_force`` where it has one per
         element (a structure's elements); empty where it is one force."""
-        return ()
 
     # -- what results measure --------------------------------------------------------------
+    @abc.abstractmethod
     def signals(self) -> units.Signals:
         """The names and SI units of what its results measure (the observable, the absorber
         stroke, each output, state component and parameter): CSV headers, plot labels and
-        dataset attributes.  Default: the outputs are displacements [m], the first the
-        observable, the second an absorber on it."""
-        return units.generic_signals(self)
+        dataset attributes."""
 
 
 class AbstractHybridSystem(AbstractSystem):

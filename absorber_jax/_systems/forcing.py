@@ -75,14 +75,12 @@ class AbstractPeriodicForcing(AbstractForcing):
     ``F(t + period) = F(t)``.
 
     **Members an implementation provides** (besides ``AbstractForcing``'s ``omega``,
-    ``amplitude`` and ``__call__``)
+    ``amplitude`` and ``__call__``; ``AbstractSampledPeriodicForcing`` gives the last three
+    from samples of the signal)
 
     - ``with_omega(omega)``: the same signal at the fundamental ``omega`` [rad/s]. Frequency
       sweeps, continuation in ``"omega"`` and the design objectives call it at every
       frequency they solve.
-
-    **Members with defaults** (override them where a closed form exists)
-
     - ``at_phase(phase)``: the signal seen from phase ``phase`` [rad] of its fundamental,
       ``t -> F(t + phase/ω)`` (continuation moves its Poincaré section with it).
     - ``with_amplitude(amplitude)``: the signal scaled to ``amplitude`` (continuation in
@@ -90,25 +88,41 @@ class AbstractPeriodicForcing(AbstractForcing):
     - ``harmonics()``: ``(orders, coefficients)`` with
       $F(t) = \mathrm{Im}\sum_j c_j e^{i k_j \omega t}$ (integer orders ``k_j >= 0``; a
       mean value ``F̄`` is order 0 with ``c = i F̄``). Linear starting guesses superpose the
-      response to each. Default: orders 0 to 16 from 64 uniform samples of a period.
+      response to each.
     """
 
     @abc.abstractmethod
     def with_omega(self, omega) -> "AbstractPeriodicForcing":
         """The same signal with the fundamental angular frequency ``omega`` [rad/s]."""
 
+    @abc.abstractmethod
     def at_phase(self, phase) -> "AbstractPeriodicForcing":
         """``t -> F(t + phase/omega)``: the signal seen from phase ``phase`` [rad]."""
+
+    @abc.abstractmethod
+    def with_amplitude(self, amplitude) -> "AbstractPeriodicForcing":
+        """The signal scaled so that its ``amplitude`` is ``amplitude``."""
+
+    @abc.abstractmethod
+    def harmonics(self):
+        """``(orders, coefficients)``: integer orders (a NumPy array) and complex
+        coefficients ``c`` with ``F(t) = Im Σ c e^{i k ω t}`` (class docstring)."""
+
+
+class AbstractSampledPeriodicForcing(AbstractPeriodicForcing):
+    """A periodic forcing known through its values: ``at_phase`` and ``with_amplitude``
+    wrap it (a shift of time, a gain), and ``harmonics`` are its orders 0 to 16 from 64
+    uniform samples of a period.  Subclass it for a signal without closed forms; it needs
+    only ``omega``, ``amplitude``, ``__call__`` and ``with_omega``."""
+
+    def at_phase(self, phase) -> "AbstractPeriodicForcing":
         return _Transformed(self, as_float(phase), as_float(1.0))
 
     def with_amplitude(self, amplitude) -> "AbstractPeriodicForcing":
-        """The signal scaled so that its ``amplitude`` is ``amplitude``."""
         gain = as_float(amplitude) / self.amplitude
         return _Transformed(self, as_float(0.0), gain)
 
     def harmonics(self):
-        """``(orders, coefficients)``: integer orders (a NumPy array) and complex
-        coefficients ``c`` with ``F(t) = Im Σ c e^{i k ω t}`` (class docstring)."""
         n = FOURIER_SAMPLES
         ts = self.period * jnp.arange(n) / n
         spectrum = jnp.fft.rfft(jax.vmap(self)(ts)) / n
@@ -121,8 +135,8 @@ class AbstractPeriodicForcing(AbstractForcing):
 
 
 class _Transformed(AbstractPeriodicForcing):
-    """``t -> gain · F(t + phase/ω)`` of a periodic forcing ``base`` (the defaults of
-    ``AbstractPeriodicForcing.at_phase`` and ``with_amplitude``)."""
+    """``t -> gain · F(t + phase/ω)`` of a periodic forcing ``base`` (``at_phase`` and
+    ``with_amplitude`` of ``AbstractSampledPeriodicForcing``)."""
 
     base: AbstractPeriodicForcing
     phase: object
@@ -301,7 +315,7 @@ class MultiHarmonic(AbstractPeriodicForcing):
         return np.asarray(self.orders, dtype=int), self.amplitudes * jnp.exp(1j * self.phases)
 
 
-class PeriodicForcing(AbstractPeriodicForcing):
+class PeriodicForcing(AbstractSampledPeriodicForcing):
     r"""Any periodic signal given as a JAX function of time: $F(t) = f(t)$ with
     $f(t + 2\pi/\omega) = f(t)$.
 

@@ -288,6 +288,15 @@ class StructuralSystem(AbstractHybridSystem):
             names += [f"{nm}.{lab}" for lab in e.state_labels]
         return tuple(names)
 
+    def to_internal(self, y):
+        return jnp.asarray(y)       # the integrator works in the public coordinates
+
+    def to_public(self, s):
+        return jnp.asarray(s)
+
+    def rest_state(self):
+        return jnp.zeros((self.num_states,), dtype=jnp.result_type(float))
+
     def _dofs(self):
         st = self.structure
         return [(st.dof_index(e.dof), -1 if e.other is None else st.dof_index(e.other))

@@ -86,6 +86,9 @@ from ._systems.base import AbstractHybridSystem, AbstractSystem  # noqa: E402
 from ._systems.elements import (  # noqa: E402
     AbstractAbsorber,
     AbstractElement,
+    AbstractForceElement,
+    AbstractSpring,
+    AbstractSpringAbsorber,
     Contact,
     FrictionContact,
     FrictionDamper,
@@ -131,7 +134,7 @@ __all__ = [
     "LinearStructure", "beam_matrices", "cantilever_beam", "craig_bampton", "read_matrix",
     "shear_building", "structure_from_matrices",
     "structure_from_modes", "AbstractSystem", "AbstractHybridSystem", "StructuralSystem",
-    "AbstractElement", "Contact",
+    "AbstractElement", "AbstractForceElement", "AbstractSpring", "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
     "Attractor", "AttractorMap", "attractors", "bifurcation_diagram", "plot_bifurcation_diagram",
     "Bifurcation", "Branch", "PseudoArclength", "band_continuation", "continuation",
@@ -144,7 +147,8 @@ __all__ = [
     "use_cpu_cores",
     "AbstractPeriodicForcing", "AbstractSampledPeriodicForcing", "MultiHarmonic",
     "PeriodicForcing", "BaseExcitation",
-    "AbstractAbsorber", "AbstractCompliantLaw", "Restitution", "restitution_of",
+    "AbstractAbsorber", "AbstractSpringAbsorber", "AbstractCompliantLaw", "Restitution",
+    "restitution_of",
     "study", "StudyResult", "questions", "AbstractDesigns", "Grid", "Designs", "MonteCarlo",
     "LatinHypercube", "AbstractDistribution", "Uniform", "Normal",
 ]

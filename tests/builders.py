@@ -74,7 +74,7 @@ def tmd(mu, f, zeta):
     return aj.ImpactAbsorber(M=M, k=K, c=0.0, m=m, gap=0.0, contact=law)
 
 
-class CubicSpring(aj.AbstractElement):
+class CubicSpring(aj.AbstractSpring):
     """``f = k3 (x_dof - x_other)³`` between two degrees of freedom, or to ground: an element
     written as a user would, from the public API alone."""
 

@@ -1,9 +1,13 @@
 """The package's layout: layers that import only the layers below them, no import cycles
-(the import-linter contracts in pyproject.toml), and no private name imported from another
-subpackage (a subpackage's internals stay its own)."""
+(the import-linter contracts in pyproject.toml), no private name imported from another
+subpackage (a subpackage's internals stay its own), and equinox's abstract/final pattern (no
+concrete member overridden)."""
 
 import ast
+import importlib
+import inspect
 import pathlib
+import pkgutil
 import subprocess
 import sys
 
@@ -47,3 +51,56 @@ def test_the_check_sees_a_private_import(tmp_path, monkeypatch):
     (pkg / "_a" / "x.py").write_text("from .._b.y import _hidden\n")
     monkeypatch.setattr(sys.modules[__name__], "PACKAGE", pkg)
     assert _cross_subpackage_private_imports() == ["_a/x.py: _b.y._hidden"]
+
+
+def _concrete_overrides(modules, package="absorber_jax"):
+    """``Class.member`` for each method or property of a class in ``modules`` that overrides
+    a concrete (non-abstract) one of a base class of the package: equinox's abstract/final
+    pattern has every concrete member final."""
+    found, seen = [], set()
+    for mod in modules:
+        for cls in vars(mod).values():
+            if (not inspect.isclass(cls) or cls in seen
+                    or not cls.__module__.startswith(package)):
+                continue
+            seen.add(cls)
+            for attr, val in vars(cls).items():
+                if attr.startswith("__") or not (inspect.isfunction(val)
+                                                 or isinstance(val, property)):
+                    continue
+                for base in cls.__mro__[1:]:
+                    if attr not in vars(base):
+                        continue
+                    if base.__module__.startswith(package):
+                        got = vars(base)[attr]
+                        got = got.fget if isinstance(got, property) else got
+                        if not getattr(got, "__isabstractmethod__", False):
+                            found.append(f"{cls.__name__}.{attr} ({base.__name__})")
+                    break
+    return sorted(found)
+
+
+def _package_modules():
+    import absorber_jax
+    return [importlib.import_module(m.name)
+            for m in pkgutil.walk_packages(absorber_jax.__path__, "absorber_jax.")
+            if not m.name.endswith("__main__")]
+
+
+def test_no_concrete_member_is_overridden():
+    assert _concrete_overrides(_package_modules()) == []
+
+
+def test_the_check_sees_an_overridden_concrete_member(tmp_path, monkeypatch):
+    """The scan above finds a planted override (so an empty result means something)."""
+    (tmp_path / "absorber_jax_planted.py").write_text(
+        "import abc\n"
+        "class Base:\n"
+        "    def hook(self):\n        return 0\n"
+        "    @abc.abstractmethod\n    def solve(self): ...\n"
+        "class Final(Base):\n"
+        "    def hook(self):\n        return 1\n"
+        "    def solve(self):\n        return 2\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    planted = importlib.import_module("absorber_jax_planted")
+    assert _concrete_overrides([planted], package="absorber_jax_planted") == ["Final.hook (Base)"]

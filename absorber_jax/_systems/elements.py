@@ -91,16 +91,19 @@ class AbstractElement(eqx.Module):
     - ``energy(x, v, z)``: the potential energy it stores plus the kinetic energy of its own
       masses [J] (energy bookkeeping).
 
-    **Methods with defaults** (override where they do not hold): ``dissipation`` (0 W: a
-    conservative element), ``num_states``/``state_labels``/``state_rate``/``state_scale``
-    (no states of its own), ``momentum`` (no mass of its own), ``stiffness_rate`` (no fast
-    dynamics of its own), ``penetrations`` (no contact walls), ``length_floor`` (no gap),
-    ``aliases`` (no short parameter names).
+    and the members below, which two bases give for the common cases:
+    [`AbstractForceElement`][absorber_jax.AbstractForceElement] (no states and no mass of its
+    own) and [`AbstractSpring`][absorber_jax.AbstractSpring] (also conservative, without
+    walls or fast dynamics: a spring of one's own needs only ``evaluate`` and ``energy``):
+    ``dissipation``, ``num_states``/``state_labels``/``state_rate``/``state_scale``,
+    ``momentum``, ``num_strokes``/``strokes``/``floats`` (an absorber's motion),
+    ``stiffness_rate``/``oscillation_rate`` (its fast dynamics), ``penetrations`` and
+    ``length_floor`` (contact walls), ``aliases`` (short parameter names).
 
     ```python
     import equinox as eqx, jax.numpy as jnp, absorber_jax as aj
 
-    class CubicSpring(aj.AbstractElement):
+    class CubicSpring(aj.AbstractSpring):
         dof: str = eqx.field(static=True)
         k3: float                                          # [N/m³]
         other: str | None = eqx.field(static=True, default=None)
@@ -122,15 +125,14 @@ class AbstractElement(eqx.Module):
     kind: ClassVar[str] = "element"
 
     @property
+    @abc.abstractmethod
     def num_states(self) -> int:
-        """How many states of its own it adds to the system's state (default 0)."""
-        return 0
+        """How many states of its own it adds to the system's state."""
 
     @property
+    @abc.abstractmethod
     def state_labels(self) -> tuple:
-        """Names of its states (suffixes of ``<name>.`` in ``state_names``; default
-        ``z1, z2, ...``)."""
-        return tuple(f"z{i + 1}" for i in range(self.num_states))
+        """Names of its states (suffixes of ``<name>.`` in ``state_names``)."""
 
     @abc.abstractmethod
     def evaluate(self, x, v, z):
@@ -138,73 +140,72 @@ class AbstractElement(eqx.Module):
         ``v`` [m/s] of its two degrees of freedom (ground: 0) and its states ``z``; ``aux``
         goes to ``state_rate``."""
 
+    @abc.abstractmethod
     def state_rate(self, x, v, a, z, aux):
         """d/dt of its states given the absolute accelerations ``a`` [m/s²] of its degrees
         of freedom (the support's included under a base excitation) and ``aux`` from
-        ``evaluate``.  Default: no states."""
-        return _zeros(0, x)
+        ``evaluate``."""
 
     @abc.abstractmethod
     def energy(self, x, v, z):
         """Kinetic energy of its own masses plus the potential energy it stores [J]."""
 
+    @abc.abstractmethod
     def dissipation(self, x, v, z):
-        """Power [W] it dissipates (>= 0).  Default 0: a conservative element."""
-        return jnp.zeros((), dtype=jnp.result_type(x, float))
+        """Power [W] it dissipates (>= 0)."""
 
+    @abc.abstractmethod
     def momentum(self, x, v, z):
         """Momentum [kg m/s] of its own masses along its degree of freedom, in the
         structure's frame (the power a support acceleration ``a_g`` puts into them is
-        ``-a_g r · momentum``).  Default 0: no mass of its own."""
-        return jnp.zeros((), dtype=jnp.result_type(x, float))
+        ``-a_g r · momentum``)."""
 
     @property
+    @abc.abstractmethod
     def num_strokes(self) -> int:
         """1 for an absorber (a mass riding on its host), else 0."""
-        return 0
 
+    @abc.abstractmethod
     def strokes(self, z):
         """Its absorber's displacement relative to the host (empty if not an absorber)."""
-        return _zeros(0, z)
 
     def field_unit(self, field: str) -> str:
         """SI unit of its parameter field ``field`` (``m`` [kg], ``k`` [N/m], ``gap`` [m],
         ``N`` [N] ...; its laws' fields are theirs to say)."""
         return units.field_unit(field)
 
+    @abc.abstractmethod
     def penetrations(self, x, v, z):
         """Signed penetration [m] of each of its contact walls (``> 0``: closed); empty
         when it has none."""
-        return _zeros(0, x)
 
+    @abc.abstractmethod
     def floats(self, stroke_max):
         """1 when its absorber floats free on an orbit within ``stroke_max``, else 0."""
-        return jnp.zeros((), int)
 
+    @abc.abstractmethod
     def state_scale(self, length, omega):
         """Natural size of its states for a motion of size ``length`` [m] at ``omega``
-        [rad/s] (the integrator's tolerances apply to the states divided by it).  Default:
-        1 per state."""
-        return jnp.ones((self.num_states,), dtype=jnp.result_type(length, float))
+        [rad/s] (the integrator's tolerances apply to the states divided by it)."""
 
+    @abc.abstractmethod
     def length_floor(self):
-        """Smallest natural length [m] of the motion it allows (a gap; default 0)."""
-        return jnp.zeros(())
+        """Smallest natural length [m] of the motion it allows (a gap; 0 without one)."""
 
+    @abc.abstractmethod
     def stiffness_rate(self, host_mass):
         """Rough largest rate [1/s] it adds to the dynamics (``host_mass`` [kg]: the
         structure's effective mass at its degree of freedom), for the automatic choice of an
-        implicit solver.  Default 0: nothing faster than the structure."""
-        return jnp.zeros(())
+        implicit solver (0: nothing faster than the structure)."""
 
+    @abc.abstractmethod
     def oscillation_rate(self, host_mass):
-        """Angular frequency [rad/s] of a fast, lightly damped oscillation it adds (default
-        0: none)."""
-        return jnp.zeros(())
+        """Angular frequency [rad/s] of a fast, lightly damped oscillation it adds (0:
+        none)."""
 
+    @abc.abstractmethod
     def aliases(self) -> dict:
         """Short parameter names mapped to field paths within the element."""
-        return {}
 
     def parameter_names(self) -> list:
         fields = [f.name for f in dataclasses.fields(self)
@@ -213,6 +214,66 @@ class AbstractElement(eqx.Module):
 
     def check(self):
         """Element-level checks that need the structure (none by default)."""
+
+
+class AbstractForceElement(AbstractElement):
+    """An element that only applies forces: no states and no mass of its own (so no
+    stroke, no floating and no bristle mode).  A concrete one gives ``evaluate``,
+    ``energy``, ``dissipation``, ``stiffness_rate``, ``penetrations``, ``length_floor`` and
+    ``aliases``."""
+
+    @property
+    def num_states(self) -> int:
+        return 0
+
+    @property
+    def state_labels(self) -> tuple:
+        return ()
+
+    def state_rate(self, x, v, a, z, aux):
+        return _zeros(0, x)
+
+    def state_scale(self, length, omega):
+        return jnp.ones((0,), dtype=jnp.result_type(length, float))
+
+    def momentum(self, x, v, z):
+        return jnp.zeros((), dtype=jnp.result_type(x, float))
+
+    @property
+    def num_strokes(self) -> int:
+        return 0
+
+    def strokes(self, z):
+        return _zeros(0, z)
+
+    def floats(self, stroke_max):
+        return jnp.zeros((), int)
+
+    def oscillation_rate(self, host_mass):
+        return jnp.zeros(())
+
+
+class AbstractSpring(AbstractForceElement):
+    """A conservative force element without contact walls or fast dynamics of its own: a
+    nonlinear spring of one's own (a cubic spring, a softening law).  A concrete one gives
+    ``evaluate`` (the forces) and ``energy`` (the potential energy it stores); it dissipates
+    nothing, has no gap and no short parameter names, and adds no rate faster than the
+    structure's (``stiffness_rate`` 0)."""
+
+    def dissipation(self, x, v, z):
+        return jnp.zeros((), dtype=jnp.result_type(x, float))
+
+    def stiffness_rate(self, host_mass):
+        return jnp.zeros(())
+
+    def penetrations(self, x, v, z):
+        return _zeros(0, x)
+
+    def length_floor(self):
+        return jnp.zeros(())
+
+    def aliases(self) -> dict:
+        return {}
 
 
 class AbstractStickSlipElement(AbstractElement):
@@ -294,13 +355,15 @@ class AbstractRigidImpactElement(AbstractElement):
     def impact_mass(self, host_mass):
         """A mass [kg] that scales its contact forces (tolerances only)."""
 
+    @abc.abstractmethod
     def held_rate(self, rate):
-        """Its own states' rate while held against a wall (identity: no own coordinate)."""
-        return rate
+        """Its own states' rate while held against a wall (``rate`` itself where it has no
+        coordinate of its own)."""
 
+    @abc.abstractmethod
     def on_wall(self, z, side):
-        """Its own states with its coordinate put on the wall ``side`` (identity: none)."""
-        return z
+        """Its own states with its coordinate put on the wall ``side`` (``z`` itself where
+        it has none)."""
 
 
 def is_rigid(element) -> bool:
@@ -352,8 +415,10 @@ class AbstractAbsorber(AbstractElement):
     - ``coupling_energy(u, z)``: the potential energy [J] of the coupling;
     - ``coupling_dissipation(u, w, z)``: the power [W] it dissipates.
 
-    Optional: ``num_law_states`` and ``law_state_scale`` (coupling states), ``length_floor``
-    (a gap), ``stiffness_rate`` (a stiff coupling).
+    and the members ``AbstractElement`` leaves to it: ``num_law_states`` and
+    ``law_state_scale`` (coupling states), ``penetrations``, ``floats`` and ``length_floor``
+    (walls and a gap), ``stiffness_rate`` and ``oscillation_rate`` (a stiff coupling, a
+    bristle mode), ``aliases``.
     """
 
     m: eqx.AbstractVar[object]
@@ -363,9 +428,9 @@ class AbstractAbsorber(AbstractElement):
         return 2 + self.num_law_states
 
     @property
+    @abc.abstractmethod
     def num_law_states(self) -> int:
-        """States of the coupling itself (default 0)."""
-        return 0
+        """States of the coupling itself (0 when none)."""
 
     @property
     def state_labels(self) -> tuple:
@@ -413,9 +478,39 @@ class AbstractAbsorber(AbstractElement):
         L = jnp.maximum(length, self.length_floor())
         return jnp.concatenate([jnp.stack([L, L * omega]), self.law_state_scale()])
 
+    @abc.abstractmethod
     def law_state_scale(self):
         """Natural size of the coupling's states (empty when it has none)."""
-        return jnp.ones((self.num_law_states,))
+
+
+class AbstractSpringAbsorber(AbstractAbsorber):
+    """An absorber on a coupling without states of its own, contact walls or fast modes (a
+    tuned mass damper, a nonlinear energy sink): a concrete one gives ``coupling``,
+    ``coupling_energy``, ``coupling_dissipation`` and ``stiffness_rate`` (the coupling's
+    rough largest rate [1/s], for the solver choice); its spring ties it to its host, so it
+    never floats free."""
+
+    @property
+    def num_law_states(self) -> int:
+        return 0
+
+    def law_state_scale(self):
+        return jnp.ones((0,))
+
+    def penetrations(self, x, v, z):
+        return _zeros(0, x)
+
+    def floats(self, stroke_max):
+        return jnp.zeros((), int)
+
+    def length_floor(self):
+        return jnp.zeros(())
+
+    def oscillation_rate(self, host_mass):
+        return jnp.zeros(())
+
+    def aliases(self) -> dict:
+        return {}
 
 
 class ImpactDamper(AbstractAbsorber, AbstractRigidImpactElement):
@@ -461,6 +556,16 @@ class ImpactDamper(AbstractAbsorber, AbstractRigidImpactElement):
     def evaluate_force(self, x, v, z, force):
         f = jnp.asarray(force, dtype=jnp.result_type(z))
         return jnp.stack([f, jnp.zeros_like(f)]), (f, _zeros(0, z))
+
+    @property
+    def num_law_states(self) -> int:
+        return 0
+
+    def law_state_scale(self):
+        return jnp.ones((0,))
+
+    def oscillation_rate(self, host_mass):
+        return jnp.zeros(())
 
     def impact_mass(self, host_mass):
         return self.m
@@ -543,6 +648,15 @@ class FrictionDamper(AbstractAbsorber, AbstractStickSlipElement):
     def law_state_scale(self):
         return self.friction.state_scale(self.normal_force)
 
+    def penetrations(self, x, v, z):
+        return _zeros(0, x)
+
+    def floats(self, stroke_max):
+        return jnp.zeros((), int)       # its spring k ties it to the host
+
+    def length_floor(self):
+        return jnp.zeros(())
+
     def stiffness_rate(self, host_mass):
         meff = self.m * host_mass / (self.m + host_mass)
         return jnp.maximum(jnp.maximum(jnp.sqrt(self.k / meff), self.c / meff),
@@ -588,7 +702,7 @@ class FrictionDamper(AbstractAbsorber, AbstractStickSlipElement):
         return z.at[1].set(0.0)
 
 
-class TunedMassDamper(AbstractAbsorber):
+class TunedMassDamper(AbstractSpringAbsorber):
     r"""A linear tuned mass damper at a degree of freedom: a mass ``m`` [kg] on a spring
     ``k`` [N/m] and a dashpot ``c`` [N s/m]; force on the host ``k u + c u̇``.
 
@@ -624,7 +738,7 @@ class TunedMassDamper(AbstractAbsorber):
         return jnp.maximum(jnp.sqrt(self.k / meff), self.c / meff)
 
 
-class Contact(AbstractRigidImpactElement):
+class Contact(AbstractForceElement, AbstractRigidImpactElement):
     r"""A contact with a gap between the degree of freedom ``dof`` and ``other`` (another
     degree of freedom, or ground when ``None``), ``contact`` any contact law.
 
@@ -704,6 +818,12 @@ class Contact(AbstractRigidImpactElement):
     def aliases(self):
         return _law_aliases(self.contact, "contact")
 
+    def held_rate(self, rate):
+        return rate     # no coordinate of its own
+
+    def on_wall(self, z, side):
+        return z
+
 
 class FrictionContact(AbstractElement):
     r"""A friction contact between ``dof`` and ``other`` (another degree of freedom, or
@@ -756,3 +876,22 @@ class FrictionContact(AbstractElement):
 
     def aliases(self):
         return {"N": "normal_force", **_law_aliases(self.friction, "friction")}
+
+    def momentum(self, x, v, z):
+        return jnp.zeros((), dtype=jnp.result_type(x, float))     # no mass of its own
+
+    @property
+    def num_strokes(self) -> int:
+        return 0
+
+    def strokes(self, z):
+        return _zeros(0, z)
+
+    def penetrations(self, x, v, z):
+        return _zeros(0, x)
+
+    def floats(self, stroke_max):
+        return jnp.zeros((), int)
+
+    def length_floor(self):
+        return jnp.zeros(())

@@ -16,13 +16,31 @@ FAR = 100.0
 
 
 def scale_warnings(system, forcing) -> list:
-    """Messages about inputs far from the scales of ``system`` under ``forcing``: a contact
-    clearance more than ``FAR`` times the largest displacement of the linear response (the
-    system's own ``linear_guess``: its displacements and their rates at ``t = 0``), so that
-    no wall is ever touched.  Empty for a system without contacts,
-    a forcing that is not periodic, or traced values."""
+    """Messages about inputs far from the scales of ``system`` under ``forcing``: a forcing
+    frequency more than ``FAR`` times the fastest rate of the system's linearised dynamics
+    (``stiffness_rate``: every mode and contact left far below, the response a vanishing
+    inertial one); a contact clearance more than ``FAR`` times the largest displacement of
+    the linear response (the system's own ``linear_guess``: its displacements and their
+    rates at ``t = 0``), so that no wall is ever touched.  Empty for a forcing that is not
+    periodic, or traced values."""
     if not isinstance(forcing, AbstractPeriodicForcing):
         return []
+    return _frequency_warnings(system, forcing) + _clearance_warnings(system, forcing)
+
+
+def _frequency_warnings(system, forcing) -> list:
+    rate, omega = system.stiffness_rate(), forcing.omega
+    if is_traced(rate) or is_traced(omega):
+        return []
+    rate, omega = float(rate), float(omega)
+    if not (np.isfinite(rate) and rate > 0.0) or omega <= FAR * rate:
+        return []
+    return [f"omega = {omega:.4g} rad/s is {omega / rate:.2g} times the fastest rate of the "
+            f"system ({rate:.3g} rad/s): far above every mode and contact, the response is "
+            f"a vanishing inertial one. Frequencies are angular, in rad/s (2π f for f in Hz)."]
+
+
+def _clearance_warnings(system, forcing) -> list:
     rest = system.rest_state()
     pen = system.penetrations(rest)
     if pen.size == 0 or is_traced(pen):
@@ -46,13 +64,17 @@ def scale_warnings(system, forcing) -> list:
 
 
 def warn_scales(system, forcings, where: str) -> None:
-    """Issue the ``scale_warnings`` of ``system`` under the closest of ``forcings`` (one
-    forcing, or several: a sweep's frequencies) as one ``UserWarning`` naming ``where``."""
-    found = None
-    for forcing in (forcings if isinstance(forcings, (list, tuple)) else [forcings]):
-        texts = scale_warnings(system, forcing)
-        if not texts:
-            return
-        found = texts
-    for text in found or []:
-        warnings.warn(f"{where}: {text}", UserWarning, stacklevel=3)
+    """Issue the ``scale_warnings`` of ``system`` under ``forcings`` (one forcing, or
+    several: a sweep's frequencies; each kind of warning only where it holds for all of
+    them, worded for the last) as ``UserWarning``s naming ``where``."""
+    forcings = forcings if isinstance(forcings, (list, tuple)) else [forcings]
+    if not all(isinstance(f, AbstractPeriodicForcing) for f in forcings):
+        return
+    for check in (_frequency_warnings, _clearance_warnings):
+        texts = []
+        for forcing in forcings:
+            texts = check(system, forcing)
+            if not texts:
+                break
+        for text in texts:
+            warnings.warn(f"{where}: {text}", UserWarning, stacklevel=3)

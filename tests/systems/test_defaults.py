@@ -56,3 +56,23 @@ def test_a_gap_far_beyond_the_motion_is_warned_about():
         warnings.simplefilter("always")
         aj.simulate(system, forcing, 0.05)
     assert not [w for w in caught if "clearance" in str(w.message)]
+
+
+def test_a_frequency_far_above_the_systems_rates_is_warned_about():
+    """A forcing frequency a hundred times above the system's fastest rate (a frequency in
+    the wrong unit) is warned about before anything is computed; one within the modes, or
+    a sweep that reaches them, is not."""
+    import warnings
+
+    import numpy as np
+    import pytest
+
+    system, _ = aj.presets.impact("kelvin_voigt")
+    rate = float(system.stiffness_rate())
+    with pytest.warns(UserWarning, match=r"omega = .* times the fastest rate .* rad/s"):
+        aj.steady_state(system, aj.Harmonic(amplitude=2.0, omega=200.0 * rate))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        aj.steady_state(system, aj.Harmonic(amplitude=2.0, omega=0.7 * rate))
+        aj.frequency_response(system, np.array([0.7, 200.0]) * rate, amplitude=2.0)
+    assert not [w for w in caught if "fastest rate" in str(w.message)]

@@ -64,10 +64,15 @@ from ._laws.helpers import (  # noqa: E402
 )
 from ._laws.restitution import Restitution, restitution_of  # noqa: E402
 from ._periodic.attractors import Attractor, AttractorMap, attractors, bifurcation_diagram  # noqa: E402
-from ._periodic.base import AbstractChainingMethod, AbstractSteadyMethod  # noqa: E402
+from ._periodic.base import (  # noqa: E402
+    AbstractChainingMethod,
+    AbstractSinglePassMethod,
+    AbstractSteadyMethod,
+)
 from ._periodic.harmonic import HarmonicBalance  # noqa: E402
 from ._periodic.marching import Marching  # noqa: E402
 from ._periodic.modes import NonlinearModes, nonlinear_modes  # noqa: E402
+from ._periodic.orbit import orbit_map, orbit_result  # noqa: E402
 from ._periodic.shooting import Shooting  # noqa: E402
 from ._periodic.steady import SteadyState, solve_point, steady_state  # noqa: E402
 from ._periodic.sweep import FrequencyResponse, frequency_response  # noqa: E402
@@ -87,6 +92,7 @@ from ._systems.elements import (  # noqa: E402
     AbstractAbsorber,
     AbstractElement,
     AbstractForceElement,
+    AbstractMasslessElement,
     AbstractSpring,
     AbstractSpringAbsorber,
     Contact,
@@ -127,14 +133,16 @@ __all__ = [
     "ImpactAbsorber", "KelvinVoigt", "LuGre", "REGIME_NAMES", "RampedHarmonic", "SOLVERS",
     "FrequencyResponse", "SteadyState", "frequency_response", "Shooting", "Marching",
     "HarmonicBalance", "NonlinearModes", "nonlinear_modes",
-    "AbstractSteadyMethod", "AbstractChainingMethod", "solve_point", "get_param", "linear_guess",
+    "AbstractSteadyMethod", "AbstractSinglePassMethod", "AbstractChainingMethod",
+    "solve_point", "orbit_map", "orbit_result", "get_param", "linear_guess",
     "parameter_names", "replace_params", "steady_state", "tune", "value_and_grad",
     "band_objective", "smooth_max", "plot_tuning", "BandPeak", "exact_peak",
     "Coexisting", "RobustPeak", "robust_peak",
     "LinearStructure", "beam_matrices", "cantilever_beam", "craig_bampton", "read_matrix",
     "shear_building", "structure_from_matrices",
     "structure_from_modes", "AbstractSystem", "AbstractHybridSystem", "StructuralSystem",
-    "AbstractElement", "AbstractForceElement", "AbstractSpring", "Contact",
+    "AbstractElement", "AbstractMasslessElement", "AbstractForceElement", "AbstractSpring",
+    "Contact",
     "FrictionContact", "FrictionDamper", "ImpactDamper", "TunedMassDamper",
     "Attractor", "AttractorMap", "attractors", "bifurcation_diagram", "plot_bifurcation_diagram",
     "Bifurcation", "Branch", "PseudoArclength", "band_continuation", "continuation",

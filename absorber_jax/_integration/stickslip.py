@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import optimistix as optx
 
 from .._core.status import Status, from_diffrax
+from .rootfind import AbstractWrappedRootFinder
 
 # segments allowed per forcing period (stick–slip has 2 to 4; more means chattering)
 SEGMENTS_PER_PERIOD = 32
@@ -49,7 +50,7 @@ POLISH_MAX = 1e-8
 EVENT_CHECK = 1e-6
 
 
-class _EventBisection(optx.AbstractRootFinder):
+class _EventBisection(AbstractWrappedRootFinder):
     """Bisection on diffrax's event bracket (wraps ``optx.Bisection``), its direction
     detected per lane.
 
@@ -60,18 +61,6 @@ class _EventBisection(optx.AbstractRootFinder):
     two end values without a check."""
 
     solver: optx.Bisection
-
-    @property
-    def rtol(self):
-        return self.solver.rtol
-
-    @property
-    def atol(self):
-        return self.solver.atol
-
-    @property
-    def norm(self):
-        return self.solver.norm
 
     def init(self, fn, y, args, options, f_struct, aux_struct, tags):
         state = self.solver.init(fn, y, args, options, f_struct, aux_struct, tags)

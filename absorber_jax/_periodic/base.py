@@ -21,7 +21,10 @@ class AbstractSteadyMethod(eqx.Module):
     @abc.abstractmethod
     def solve(self, system, forcing, x0, cfg, *, with_floquet=True):
         """The [`SteadyState`][absorber_jax.SteadyState] from the *scaled* internal state ``x0``
-        (one orbit solve, vmappable: nothing here retries or raises)."""
+        (one orbit solve, vmappable: nothing here retries or raises).  ``cfg`` holds the
+        integration settings, to be passed on to [`orbit_map`][absorber_jax.orbit_map] and
+        [`orbit_result`][absorber_jax.orbit_result], from which a method of one's own builds
+        its orbit and its result."""
 
     @property
     @abc.abstractmethod
@@ -43,6 +46,21 @@ class AbstractSteadyMethod(eqx.Module):
     def resume(self, budget):
         """The method that finishes, from their best iterate, the points still iterating
         after ``first_pass(budget)``; None when there is nothing to resume."""
+
+
+class AbstractSinglePassMethod(AbstractSteadyMethod):
+    """A steady-state method whose iterations a sweep does not cap and that no solve
+    retries (``Marching``, ``HarmonicBalance``): its first pass and its giving-up form are
+    itself, and nothing is left to resume."""
+
+    def first_pass(self, budget):
+        return self
+
+    def giving_up(self, steps):
+        return self
+
+    def resume(self, budget):
+        return None
 
 
 class AbstractChainingMethod(AbstractSteadyMethod):

@@ -45,7 +45,7 @@ from .._core.checks import check_scalar
 from .._core.status import Status
 from .._integration.flow import integrate_flow, state_scale
 from .._systems.base import is_hybrid
-from .base import AbstractSteadyMethod
+from .base import AbstractSinglePassMethod
 from .orbit import SAMPLES_PER_PERIOD, floquet, sample_statistics, steady_of
 
 # the first guess is projected from the last of this many periods integrated from the start
@@ -56,7 +56,7 @@ STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.1)
 SVD_SIZE = 40
 
 
-class HarmonicBalance(AbstractSteadyMethod):
+class HarmonicBalance(AbstractSinglePassMethod):
     """Harmonic balance with the alternating frequency–time scheme and Hill stability
     (see the module above): a steady-state method for ``steady_state`` and
     ``frequency_response`` (vmapped over frequencies like shooting).
@@ -125,15 +125,6 @@ class HarmonicBalance(AbstractSteadyMethod):
     @property
     def retry(self) -> bool:
         return False
-
-    def first_pass(self, budget):
-        return self     # its iterations are not capped
-
-    def giving_up(self, steps):
-        return self     # it is not retried
-
-    def resume(self, budget):
-        return None
 
     @property
     def time_samples(self) -> int:

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 from .._core.checks import check_scalar
 from .._core.status import Status
 from .._integration.flow import integrate
-from .base import AbstractSteadyMethod
+from .base import AbstractSinglePassMethod
 from .orbit import _no_gradient, finish_orbit, implicit_orbit
 
 # a response whose closest recurrence min_n d_n is below this many tol is near periodic: a
@@ -121,7 +121,7 @@ def march(system, forcing, x0, cfg, *, n_max=6, tol=1e-6, max_periods=4000, chun
                    n_cap=n_max)
 
 
-class Marching(AbstractSteadyMethod):
+class Marching(AbstractSinglePassMethod):
     """March from the start (default rest) until the Poincaré samples repeat.
 
     **Arguments**
@@ -164,15 +164,6 @@ class Marching(AbstractSteadyMethod):
     @property
     def retry(self):
         return False
-
-    def first_pass(self, budget):
-        return self     # its iterations are not capped
-
-    def giving_up(self, steps):
-        return self     # it is not retried
-
-    def resume(self, budget):
-        return None
 
     def initial_state(self, system, forcing):
         return system.rest_state()

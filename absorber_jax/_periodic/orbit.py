@@ -395,6 +395,28 @@ def finish_orbit(system, forcing, x, n, cfg, status, residual, iterations, with_
     return steady, section_of(system, samples, section, at_zero)
 
 
+def orbit_map(system, forcing, x, n, cfg):
+    """The period-``n`` map of a steady-state method: ``(Φ_nT(x), status)``, the scaled
+    internal state after ``n`` forcing periods from the scaled internal state ``x`` at
+    ``t = 0`` (``x`` as ``AbstractSteadyMethod.solve`` receives it: the internal state over
+    ``state_scale``), integrated with the settings ``cfg`` the method was given (exact
+    events and saltation included for hybrid systems), and the integrator's
+    [`Status`][absorber_jax.Status].  Differentiable in ``x`` (its Jacobian is the
+    monodromy matrix) and vmappable."""
+    return period_map(system, forcing, x, n, cfg)
+
+
+def orbit_result(system, forcing, x, n, cfg, *, tol, iterations, with_floquet=True):
+    """The [`SteadyState`][absorber_jax.SteadyState] a steady-state method returns for the
+    period-``n`` orbit through the scaled internal state ``x`` at ``t = 0``: its amplitudes,
+    harmonics, impacts and strokes from one more integration over the orbit, its residual
+    ``max |Φ_nT(x) - x|`` (scaled) from the same integration, ``SUCCESS`` where that is
+    within ``tol`` (else ``NO_CONVERGENCE``, or the integrator's failure), its Floquet
+    multipliers (``with_floquet``) and stability; ``iterations`` is reported as given."""
+    return finish_orbit(system, forcing, x, n, cfg, None, None, iterations, with_floquet,
+                        n_cap=n, tol=tol)
+
+
 def steady_of(system, stats, stroke_max, at_zero, n, mult, status, residual, iterations):
     """The ``SteadyState`` of an orbit from its statistics (``sample_statistics``), its
     internal state at ``t = 0``, its Floquet multipliers and the solver's status: a point

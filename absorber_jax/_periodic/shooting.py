@@ -20,6 +20,7 @@ import optimistix as optx
 from .._core.checks import check_scalar
 from .._core.status import Status
 from .._integration.flow import period_map
+from .._integration.rootfind import AbstractWrappedRootFinder
 from .base import AbstractChainingMethod
 from .orbit import finish_orbit, floquet_matrix, monodromy
 
@@ -34,25 +35,7 @@ def _keep_best(best, y, size, valid=True):
             jnp.where(better, size, best[1]))
 
 
-class _Wrapped(optx.AbstractRootFinder):
-    """A root finder that wraps another and delegates its tolerances and norm to it."""
-
-    solver: eqx.AbstractVar[optx.AbstractRootFinder]
-
-    @property
-    def rtol(self):
-        return self.solver.rtol
-
-    @property
-    def atol(self):
-        return self.solver.atol
-
-    @property
-    def norm(self):
-        return self.solver.norm
-
-
-class _GivesUp(_Wrapped):
+class _GivesUp(AbstractWrappedRootFinder):
     """Wraps an optimistix Newton: it also stops, unconverged, once ``give_up`` steps have
     left its residual above ``far`` (max-norm): an iterate wandering that far after that
     many steps is not in Newton's basin, and a solve that will be retried (marching then
@@ -79,7 +62,7 @@ class _GivesUp(_Wrapped):
         return self.solver.postprocess(fn, y, aux, args, options, state, tags, result)
 
 
-class _KeepsBest(_Wrapped):
+class _KeepsBest(AbstractWrappedRootFinder):
     """Wraps an optimistix Newton or Chord (or ``_GivesUp`` around one): the iterate with
     the smallest residual evaluated is kept and returned, converged or not.
 

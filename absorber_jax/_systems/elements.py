@@ -216,7 +216,25 @@ class AbstractElement(eqx.Module):
         """Element-level checks that need the structure (none by default)."""
 
 
-class AbstractForceElement(AbstractElement):
+class AbstractMasslessElement(AbstractElement):
+    """An element without a mass of its own: no momentum, no stroke, never floating (a
+    contact, a spring, a friction contact)."""
+
+    def momentum(self, x, v, z):
+        return jnp.zeros((), dtype=jnp.result_type(x, float))
+
+    @property
+    def num_strokes(self) -> int:
+        return 0
+
+    def strokes(self, z):
+        return _zeros(0, z)
+
+    def floats(self, stroke_max):
+        return jnp.zeros((), int)
+
+
+class AbstractForceElement(AbstractMasslessElement):
     """An element that only applies forces: no states and no mass of its own (so no
     stroke, no floating and no bristle mode).  A concrete one gives ``evaluate``,
     ``energy``, ``dissipation``, ``stiffness_rate``, ``penetrations``, ``length_floor`` and
@@ -235,19 +253,6 @@ class AbstractForceElement(AbstractElement):
 
     def state_scale(self, length, omega):
         return jnp.ones((0,), dtype=jnp.result_type(length, float))
-
-    def momentum(self, x, v, z):
-        return jnp.zeros((), dtype=jnp.result_type(x, float))
-
-    @property
-    def num_strokes(self) -> int:
-        return 0
-
-    def strokes(self, z):
-        return _zeros(0, z)
-
-    def floats(self, stroke_max):
-        return jnp.zeros((), int)
 
     def oscillation_rate(self, host_mass):
         return jnp.zeros(())
@@ -825,7 +830,7 @@ class Contact(AbstractForceElement, AbstractRigidImpactElement):
         return z
 
 
-class FrictionContact(AbstractElement):
+class FrictionContact(AbstractMasslessElement):
     r"""A friction contact between ``dof`` and ``other`` (another degree of freedom, or
     ground when ``None``) pressed by ``normal_force`` [N] (alias ``N``), ``friction`` a
     smoothed or bristle law: with the slip velocity ``V = v_dof - v_other`` it pushes ``dof``
@@ -877,21 +882,8 @@ class FrictionContact(AbstractElement):
     def aliases(self):
         return {"N": "normal_force", **_law_aliases(self.friction, "friction")}
 
-    def momentum(self, x, v, z):
-        return jnp.zeros((), dtype=jnp.result_type(x, float))     # no mass of its own
-
-    @property
-    def num_strokes(self) -> int:
-        return 0
-
-    def strokes(self, z):
-        return _zeros(0, z)
-
     def penetrations(self, x, v, z):
         return _zeros(0, x)
-
-    def floats(self, stroke_max):
-        return jnp.zeros((), int)
 
     def length_floor(self):
         return jnp.zeros(())

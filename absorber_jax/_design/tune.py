@@ -213,7 +213,9 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
       ``(grid, n_best)`` keeps ``n_best`` instead of 3.
     - ``method``: the ``Shooting`` that solves each orbit (its ``tol``, the scaled
       max-norm of the period-map residual, and ``newton_steps``); default
-      ``Shooting(tol=1e-7, newton_steps=40)``.  Design evaluations never fall back to
+      ``Shooting(tol=1e-7, newton_steps=40)``; or, for the grid objectives, a
+      ``HarmonicBalance`` (its orbits differentiated implicitly; failed frequencies are
+      reseeded by shooting's marching retry all the same).  Design evaluations never fall back to
       marching (a branch switch would make the objective discontinuous): failed points are
       reseeded by marching between evaluations instead.
     - ``integrator``: an ``Integrator`` (default: the design tolerances, rtol = atol =
@@ -251,7 +253,11 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
         callback, progress = progress, False
     obj = SmoothPeak() if objective == "amplitude" else as_objective(objective, "tune")
     obj = legacy_objective(obj, "tune", legacy)
-    method = design_method(method, "tune", legacy)
+    method = design_method(method, "tune", legacy, balance=True)
+    if isinstance(method, HarmonicBalance) and obj.kind in ("exact_peak", "robust_peak"):
+        raise ValueError(f"tune: objective {obj.kind!r} follows its peaks by shooting; give "
+                         "method=aj.Shooting(...), or a grid objective (SmoothPeak, "
+                         "MeanSquare) with HarmonicBalance")
     integ = integrator_from(integrator, "design", "tune", legacy,
                             fields=("solver", "rtol", "atol", "max_steps"))
     n_starts = 3
@@ -278,14 +284,17 @@ def tune(system, params, band, *, amplitude, objective=None, optimizer=None, ste
                  rtol=integ.rtol, atol=integ.atol, newton_steps=method.newton_steps,
                  solver=integ.solver, progress=progress, confirm=bool(confirm),
                  confirm_points=points, confirm_samples=samples, starts=starts,
-                 n_starts=n_starts, callback=callback, max_steps=integ.max_steps, **opts)
+                 n_starts=n_starts, callback=callback, max_steps=integ.max_steps,
+                 balance=method if isinstance(method, HarmonicBalance) else None, **opts)
 
 
 def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_freq, bounds,
           softness, peaks, tol, rtol, atol, newton_steps, solver, progress, confirm,
           confirm_points, confirm_samples, stability_margin, starts, n_starts, modes, probes,
-          probe_samples, rounds, callback, max_steps=200_000):
-    """``tune`` with the objective's options unpacked (``objective`` its ``kind``)."""
+          probe_samples, rounds, callback, max_steps=200_000, balance=None):
+    """``tune`` with the objective's options unpacked (``objective`` its ``kind``);
+    ``balance``: the ``HarmonicBalance`` that solves the grid objectives' orbits (None:
+    shooting)."""
     require_x64("tune")
     import optax
 
@@ -297,7 +306,7 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
             confirm_points=confirm_points, confirm_samples=confirm_samples,
             stability_margin=stability_margin, modes=modes, probes=probes,
             probe_samples=probe_samples, rounds=rounds, callback=callback,
-            max_steps=max_steps))
+            max_steps=max_steps, balance=balance))
     if stability_margin is not None:
         check_scalar("tune", "stability_margin", stability_margin, lo=0.0, hi=1.0, hi_open=True)
         if objective not in ("exact_peak", "robust_peak"):
@@ -344,7 +353,7 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
     u0 = reparam.inverse(jnp.asarray(p0))
     evaluate = _Evaluator(system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
                           objective, softness, peaks, stability_margin, solver, rtol, atol,
-                          modes)
+                          modes, balance)
     hist = {"objective": [], "params": {k: [] for k in names}, "grad_norm": [], "failed": [],
             "nonsmooth": [], "seconds": [], "peak_bias": []}
     if exact:
@@ -366,7 +375,7 @@ def _tune(system, params, band, *, amplitude, objective, optimizer, steps, n_fre
     hist["amplitude_before"] = evaluate.amps_before
 
     after = frequency_response(tuned, omegas, amplitude=float(amplitude),
-                               method=Shooting(tol=tol, newton_steps=newton_steps),
+                               method=balance or Shooting(tol=tol, newton_steps=newton_steps),
                                integrator=Integrator(solver=solver, rtol=rtol, atol=atol))
     hist["amplitude_after"] = after.amplitude
     hist["status_after"] = after.status
@@ -443,7 +452,8 @@ def _tune_from_starts(system, params, band, starts, n_starts, progress, kw):
     omegas = np.linspace(lo, hi, kw["n_freq"])
     grid = {k: np.array([c[k] for c in combos], dtype=float) for k in keys}
     fr = frequency_response(system, omegas, amplitude=float(kw["amplitude"]), params=grid,
-                            method=Shooting(tol=kw["tol"], newton_steps=kw["newton_steps"]),
+                            method=kw["balance"] or Shooting(tol=kw["tol"],
+                                                             newton_steps=kw["newton_steps"]),
                             integrator=Integrator(solver=kw["solver"], rtol=kw["rtol"],
                                                   atol=kw["atol"]),
                             floquet=False, progress=progress)
@@ -477,13 +487,14 @@ class _Evaluator:
 
     def __init__(self, system, names, reparam, omegas, amplitude, cfg, tol, newton_steps,
                  objective, softness, peaks, margin=None, solver=None, rtol=1e-10, atol=1e-10,
-                 modes=True):
+                 modes=True, balance=None):
         self.args = (system, names, reparam)
         self.margin, self.integrator = margin, dict(solver=solver, rtol=rtol, atol=atol)
         self.omegas, self.amplitude, self.cfg = omegas, amplitude, cfg
         self.tol, self.newton_steps = tol, newton_steps
         self.objective, self.softness, self.peaks = objective, softness, peaks
         self.modes = bool(modes)
+        self.balance = balance
         self.exact = objective in ("exact_peak", "robust_peak")
         # coexisting responses followed by shooting (objective "robust_peak"): their
         # frequencies and internal states
@@ -507,8 +518,8 @@ class _Evaluator:
                     out["grid_status"][:F])
         val, g, (amps, states, status) = _value_and_jac(
             system, names, reparam, u, om, amp, guesses, self.cfg,
-            shooting_for_design(float(self.tol), int(self.newton_steps)), self.objective,
-            self.softness)
+            self.balance or shooting_for_design(float(self.tol), int(self.newton_steps)),
+            self.objective, self.softness)
         return ((float(val), np.asarray(g)), np.asarray(amps), np.asarray(states),
                 np.asarray(status))
 

@@ -244,3 +244,25 @@ def test_harmonic_balance_gives_design_gradients_of_a_friction_damped_beam():
     with pytest.raises(ValueError, match="follows its peaks by shooting"):
         aj.value_and_grad(system, names, om, amplitude=2.0, method=hb,
                           objective=aj.objectives.ExactPeak())
+
+
+def test_tune_by_harmonic_balance_follows_the_shooting_descent():
+    """``tune`` with a grid objective and ``method=HarmonicBalance``: on a linear tuned mass
+    damper (one harmonic is exact) each step of the descent sees the objective and gradient
+    shooting sees, so the tuned design and the objective's history are shooting's."""
+    st = aj.structure_from_matrices([[1.0]], [[1e3]], damping=[[1.0]], dof_names=["x1"])
+    tmd = aj.StructuralSystem(st, [aj.TunedMassDamper("x1", m=0.05, k=40.0, c=0.2)],
+                              load="x1")
+    kw = dict(amplitude=1.0, objective=aj.objectives.SmoothPeak(), steps=10, confirm=False)
+    _, h_s = aj.tune(tmd, ["tmd1.k", "tmd1.c"], (25.0, 38.0), method=aj.Shooting(tol=1e-9),
+                     **kw)
+    tuned, h_h = aj.tune(tmd, ["tmd1.k", "tmd1.c"], (25.0, 38.0),
+                         method=aj.HarmonicBalance(harmonics=1, tol=1e-12), **kw)
+    assert h_h["objective"][-1] < 0.9 * h_h["objective"][0]       # it did descend
+    np.testing.assert_allclose(h_h["objective"], h_s["objective"], rtol=1e-6)
+    for k in h_s["best"]:
+        assert abs(h_h["best"][k] / h_s["best"][k] - 1) < 1e-6
+    assert np.all(np.asarray(h_h["status_after"]) == 0)
+    with pytest.raises(ValueError, match="follows its peaks by shooting"):
+        aj.tune(tmd, ["tmd1.k"], (25.0, 38.0), amplitude=1.0,
+                method=aj.HarmonicBalance(harmonics=1))

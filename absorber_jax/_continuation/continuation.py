@@ -219,7 +219,8 @@ def _check_balance(system, orbit, n, start):
 def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                       parameter: str = "omega", *,
                       bounds, starts=8, method: PseudoArclength | None = None, n: int = 1,
-                      fill: int = 2, integrator=None, progress=False, **legacy) -> tuple:
+                      fill: int = 2, integrator=None, orbit=None, progress=False,
+                      **legacy) -> tuple:
     """Cover a parameter band with branches of period-``n`` orbits followed from several
     start values at once: every start up and down, each half-branch bounded by the
     neighbouring start values (so every cell between two starts is followed from both
@@ -234,7 +235,7 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     0.031 s for one).
 
     **Arguments** as ``continuation`` (``bounds``, ``method``, ``n``, ``integrator``,
-    ``progress``), and
+    ``orbit``, ``progress``), and
 
     - ``starts``: the number of start values (the centres of that many equal cells of the
       bounds) or the start values themselves (inside the bounds).  The first orbit at each
@@ -253,6 +254,11 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
       2 passes cover both hard-contact scenes' 20–45 rad/s whole).
 
     The bifurcations of all the half-branches are located together once the passes end.
+
+    With ``orbit=HarmonicBalance(...)`` the half-branches are balanced orbits (period 1,
+    as ``continuation``), followed one after the other (one compiled corrector serves them
+    all), each start's first orbit balanced from the linear response there, the fill
+    passes' likewise.
 
     **Returns** a tuple of ``Branch`` es, two per start (down, then up), the fill
     passes' after the starts' (two per fill start that had a first guess).
@@ -278,6 +284,20 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     no_more("band_continuation", legacy)
     solver, rtol, atol, max_steps = integ.solver, integ.rtol, integ.atol, integ.max_steps
     cfg = _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps)
+    if orbit is not None:
+        _check_balance(system, orbit, n, None)
+        count = len(values)                 # starts per fill pass, as the starts'
+        with _bar(method.max_points * 2 * count, parameter, progress) as bar:
+            out = _balance_pass(system, forcing, parameter, orbit, cfg, method, values,
+                                _cells(values, lo, hi), bar)
+            for _ in range(fill):
+                values, limits = _fill_starts(_gaps(out, lo, hi), count)
+                if not values.size:
+                    break
+                bar.total += method.max_points * 2 * values.size
+                out += _balance_pass(system, forcing, parameter, orbit, cfg, method, values,
+                                     limits, bar)
+        return _band_result(out, parameter, lo, hi, system)
     base = _Problem(system=system, forcing=forcing, s0=state_scale(system, forcing),
                     pscale=jnp.asarray(max(abs(lo), abs(hi))), cfg=cfg, parameter=parameter,
                     n=n)
@@ -300,13 +320,44 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                              lanes)
         for (i, j), b in zip(todo, found):
             out[i][0][1][j] = b
+    return _band_result(out, parameter, lo, hi, system)
+
+
+def _band_result(out, parameter, lo, hi, system):
+    """The ``Branch`` es of the half-branches ``out``, with a warning naming the parts of
+    ``(lo, hi)`` none reached."""
     missed = _gaps(out, lo, hi)
     if missed:
         parts = ", ".join(f"{a:.6g}-{b:.6g}" for a, b in sorted(missed))
         warnings.warn(f"band_continuation: no branch reached {parameter} in {parts}; try: "
                       f"more starts or fill passes, or aj.attractors there (the response "
-                      f"may not be periodic)", RuntimeWarning, stacklevel=2)
+                      f"may not be periodic)", RuntimeWarning, stacklevel=3)
     return tuple(_branch(*r, drv, v, system) for r, drv, v in out)
+
+
+def _cells(values, lo, hi):
+    """Each start's limits: the neighbouring start values (the bounds at the ends)."""
+    edges = np.concatenate([[lo], values, [hi]])
+    return [(float(edges[i]), float(edges[i + 2])) for i in range(len(values))]
+
+
+def _balance_pass(system, forcing, parameter, orbit, cfg, method, values, limits, bar):
+    """Half-branches of balanced orbits from the start ``values`` (start ``i`` followed down
+    and up within ``limits[i]``), one after the other, as ``_band_pass`` returns them."""
+    out = []
+    for v, lim in zip(values, limits):
+        sysv, forcv = _set_value(system, forcing, parameter, float(v))
+        s0 = state_scale(sysv, forcv)
+        pscale = abs(float(v)) if v != 0 else max(abs(lim[0]), abs(lim[1]))
+        guess = np.asarray(sysv.linear_guess(forcv)) / np.asarray(s0)
+        for direction in ("down", "up"):
+            prob = _BalanceProblem(system=system, forcing=forcing, s0=s0,
+                                   pscale=jnp.asarray(pscale), balance=orbit, cfg=cfg,
+                                   parameter=parameter)
+            drv = _BalanceDriver(prob, method, lim)
+            first = drv.first(guess, float(v) / pscale, direction, cfg)
+            out.append((_run(_follow(drv, first, None, method.locate, bar)), drv, float(v)))
+    return out
 
 
 def _band_pass(base, method, values, limits, lanes, locate, bar, linear=True):

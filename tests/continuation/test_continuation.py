@@ -4,6 +4,8 @@ closed-form linear FRF, the jump frequencies of slow stepped marching sweeps wri
 exact piecewise-linear flows (reference_jumps.py), and the exact continuation of NLvib's
 example 03 (reference_nlvib03.py)."""
 
+import warnings
+
 import numpy as np
 import pytest
 import reference_jumps as rj
@@ -526,3 +528,15 @@ def test_a_harmonic_balance_branch_has_shootings_folds_and_floquet_labels():
     with pytest.raises(ValueError, match="period-1 orbits"):
         aj.continuation(duffing, forcing, "omega", bounds=(25.0, 70.0), n=2,
                         orbit=aj.HarmonicBalance())
+    # the band covered from three starts by balanced half-branches: no part left, and the
+    # folds where the shooting branch has them
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)       # a part not reached warns
+        band = aj.band_continuation(duffing, forcing, "omega", bounds=(25.0, 70.0),
+                                    starts=3, fill=1,
+                                    orbit=aj.HarmonicBalance(harmonics=9, stability="hill"))
+    assert len(band) == 6 and all(np.all(b.ok) for b in band)
+    found = np.array([b.value for br in band for b in br.bifurcations])
+    assert {b.kind for br in band for b in br.bifurcations} == {"fold"}
+    for f in ref:
+        assert np.min(np.abs(found - f)) < 1e-5 * f

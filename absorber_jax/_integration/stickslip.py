@@ -114,7 +114,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     root = _EventBisection(optx.Bisection(rtol=1e-14, atol=EVENT_TOL, flip=False))
     # rigid walls: no step longer than the system's limit, so that an excursion beyond a
     # wall shorter than one step (crossed and crossed back between the step's ends, near
-    # grazing) stays shallow (see AbstractSystem.event_step_limit)
+    # grazing) stays shallow (see AbstractHybridSystem.event_step_limit)
     ctrl = diffrax.PIDController(rtol=rtol, atol=atol, norm=norm,
                                  dtmax=system.event_step_limit(forcing))
     ts_b = None if ts is None else _sg(ts)

@@ -98,7 +98,7 @@ class AbstractCompliantLaw(AbstractContactLaw):
 
     exact: ClassVar[bool] = False
     exponent: ClassVar[float]  # power of δ in the elastic term
-    damping_unit: ClassVar[str] = "N s/m"   # of the damping field
+    damping_unit: eqx.AbstractClassVar[str]   # of the damping field
 
     stiffness: eqx.AbstractVar[object]
     damping: eqx.AbstractVar[object]
@@ -189,6 +189,7 @@ class KelvinVoigt(AbstractCompliantLaw):
     """
 
     exponent: ClassVar[float] = 1.0
+    damping_unit: ClassVar[str] = "N s/m"
     stiffness: object = eqx.field(converter=as_float)
     damping: object = eqx.field(converter=as_float, default=0.0)
     eps: object = eqx.field(converter=as_float, default=1e-6)
@@ -296,6 +297,7 @@ class Hertz(_AbstractHertzian):
     ```
     """
 
+    damping_unit: ClassVar[str] = "N s/m"
     stiffness: object = eqx.field(converter=as_float)
     damping: object = eqx.field(converter=as_float, default=0.0)
     eps: object = eqx.field(converter=as_float, default=1e-6)

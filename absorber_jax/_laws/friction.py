@@ -36,7 +36,7 @@ class AbstractFrictionLaw(eqx.Module):
     exact: eqx.AbstractVar[bool]
 
     def __check_init__(self):
-        if self.exact is True and not isinstance(self, AbstractStickSlipLaw):
+        if self.exact and not isinstance(self, AbstractStickSlipLaw):
             raise ValueError(f"{type(self).__name__}: exact=True needs a memoryless law "
                              "derived from AbstractStickSlipLaw (it gives breakaway_force "
                              "and kinetic_force); give eps for a smoothed law instead")

@@ -16,7 +16,10 @@ Newton's Jacobian is the forward-mode derivative of that residual (``jax.jacfwd`
 steps minimum-norm least squares for small balances (families of orbits, such as a floating
 absorber's position, make it singular) and LU solves for large ones (``newton_solve``).
 
-**Stability (Hill's method).**  A perturbation ``e^{λt} p(t)``, ``p`` of period ``T``
+**Stability.**  By default (``stability="monodromy"``) the multipliers are the eigenvalues
+of the full system's monodromy matrix over one period from the balanced orbit's state at
+``t = 0``: a check by the shooting layer.  **Hill's method** (``stability="hill"``): a
+perturbation ``e^{λt} p(t)``, ``p`` of period ``T``
 expanded on the same harmonics, solves the linearised equation where ``λ`` is an eigenvalue
 of ``-ω ∂R/∂c`` (``R`` the residual with time scaled by ``1/ω``, ``c`` the coefficients).
 Of its ``n(2H+1)`` eigenvalues (each Floquet exponent repeated at ``λ + ikω``, its
@@ -25,8 +28,9 @@ harmonic zero are kept (sorting by symmetry: A. Lazarus, O. Thomas, *A harmonic-
 method for computing the stability of periodic solutions of dynamical systems*, C. R.
 Mécanique 338 (2010) 510); the multipliers are ``exp(λT)``.  The constant harmonic alone is
 no criterion: the Floquet modes of a symmetric orbit (a Duffing oscillator's) have none.
-Truncation shifts the multipliers: as
-``H`` grows they converge to the monodromy's.
+Truncation shifts the multipliers: for smooth laws they converge to the monodromy's as
+``H`` grows; on a law with a kink the eigenfunctions carry slowly decaying harmonics and
+they may not (see ``HarmonicBalance.stability``).
 
 **Accuracy.**  For smooth laws the error falls exponentially with ``H`` (a Duffing
 oscillator's amplitude: 8.6e-3 at ``H = 1``, 2.6e-9 at ``H = 9`` against shooting); for laws
@@ -57,9 +61,10 @@ SVD_SIZE = 40
 
 
 class HarmonicBalance(AbstractSinglePassMethod):
-    """Harmonic balance with the alternating frequency–time scheme and Hill stability
-    (see the module above): a steady-state method for ``steady_state`` and
-    ``frequency_response`` (vmapped over frequencies like shooting).
+    """Harmonic balance with the alternating frequency–time scheme, its orbits' stability
+    from the monodromy or by Hill's method (see the module above): a steady-state method
+    for ``steady_state`` and ``frequency_response`` (vmapped over frequencies like
+    shooting).
 
     **Arguments**
 
@@ -81,9 +86,10 @@ class HarmonicBalance(AbstractSinglePassMethod):
       orbit's state at ``t = 0`` (one integration with its tangents: a check by the
       shooting layer, right wherever the orbit is).  ``"hill"``: Hill's method on the
       balance's Jacobian (no integration; full balance only), accurate for smooth laws, but
-      not on a law with a kink: on NLvib example 03's unilateral spring one multiplier pair
-      stays wrong at H = 21, 42 and 84 (2.28, 0.31, 1.35 where the orbit's are 0.94 and
-      0.73), and the labels with it.
+      not on a law with a kink: on NLvib example 03's unilateral spring at Ω = 0.7357, a
+      stable orbit whose multipliers are 0.94, 0.73 and a complex pair of modulus 0.82,
+      Hill's method gives moduli 2.28 and 0.37 at H = 21, a pair of 0.31 at H = 42 and a
+      pair of 1.35 at H = 84 in place of 0.94 and 0.73, and the labels with them.
 
     The first guess of the full balance is the method's own start (the system's linear
     response) or the state a caller gives, integrated over ``WARMUP`` periods, the last

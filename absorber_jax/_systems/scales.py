@@ -36,7 +36,7 @@ def _frequency_warnings(system, forcing) -> list:
     if not (np.isfinite(rate) and rate > 0.0) or omega <= FAR * rate:
         return []
     return [f"omega = {omega:.4g} rad/s is {omega / rate:.2g} times the fastest rate of the "
-            f"system ({rate:.3g} rad/s): far above every mode and contact, the response is "
+            f"system ({rate:.3g} 1/s): far above every mode and contact, the response is "
             f"a vanishing inertial one. Frequencies are angular, in rad/s (2π f for f in Hz)."]
 
 

@@ -528,15 +528,28 @@ def test_a_harmonic_balance_branch_has_shootings_folds_and_floquet_labels():
     with pytest.raises(ValueError, match="period-1 orbits"):
         aj.continuation(duffing, forcing, "omega", bounds=(25.0, 70.0), n=2,
                         orbit=aj.HarmonicBalance())
-    # the band covered from three starts by balanced half-branches: no part left, and the
-    # folds where the shooting branch has them
+    # the band covered from three starts by balanced half-branches (their multipliers from
+    # the monodromy, the default): no part left, the folds where the shooting branch has
+    # them, and the labels as the Hill branch's
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)       # a part not reached warns
         band = aj.band_continuation(duffing, forcing, "omega", bounds=(25.0, 70.0),
                                     starts=3, fill=1,
-                                    orbit=aj.HarmonicBalance(harmonics=9, stability="hill"))
+                                    orbit=aj.HarmonicBalance(harmonics=9))  # monodromy
     assert len(band) == 6 and all(np.all(b.ok) for b in band)
     found = np.array([b.value for br in band for b in br.bifurcations])
     assert {b.kind for br in band for b in br.bifurcations} == {"fold"}
     for f in ref:
         assert np.min(np.abs(found - f)) < 1e-5 * f
+    hb_amp = np.asarray(hb.amplitude)
+    compared = 0
+    for br in band:
+        for w, a, st in zip(br.values, np.asarray(br.amplitude), np.asarray(br.stable)):
+            if np.min(np.abs(np.asarray(ref) - w)) > 1e-2 * w:       # away from the folds
+                # the Hill branch's nearest orbit (in frequency and amplitude: three
+                # coexist between the folds)
+                i = int(np.argmin(np.abs(hb.values / w - 1) + np.abs(hb_amp / a - 1)))
+                if abs(hb.values[i] / w - 1) < 5e-3 and abs(hb_amp[i] / a - 1) < 5e-2:
+                    assert st == stable[i], (w, a, hb.values[i], hb_amp[i])
+                    compared += 1
+    assert compared > 20, compared

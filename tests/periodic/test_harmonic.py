@@ -144,7 +144,7 @@ def test_harmonic_balance_converges_algebraically_on_a_friction_absorber():
     """A friction absorber (m1 = 1 kg, k1 = 1e4 N/m, c1 = 2 N s/m; m2 = 0.2 kg, k2 = 1.5e3
     N/m; Coulomb μ = 0.3 at N = 2 N smoothed by tanh(v/1e-3)), 40 N at 90 rad/s, sticking
     and slipping: the balanced orbit's amplitude against shooting at rtol 1e-10, H = 8 …
-    64.  Measured 7.2e-3, 3.5e-3, 2.4e-3, 1.1e-3 (H^-0.9; 4.4e-4 at H = 128; with the
+    64.  Measured 7.2e-3, 3.5e-3, 2.4e-3, 1.1e-3 (fitted H^-0.85; 4.4e-4 at H = 128; with the
     smoother tanh(v/1e-2), 5.8e-5 at H = 64)."""
     system = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=0.2, k2=1.5e3, c2=0.0,
                                  normal_force=2.0, friction=aj.Coulomb(mu=0.3, eps=1e-3))

@@ -20,6 +20,7 @@ class CubicWall(aj.AbstractCompliantLaw):
     """``f(δ, δ̇) = k δ³ + c δ̇`` (a user-written contact law)."""
 
     exponent = 3.0
+    damping_unit = "N s/m"
     stiffness: float
     damping: float
     eps: float

@@ -25,7 +25,8 @@ class AbstractSystem(eqx.Module):
       ``rest_state``, ``state_scale`` (the per-component scale the integrator and Newton
       work in);
     - its dynamics: ``vector_field``, ``mechanical_energy``, ``power``, the solver hints
-      ``stiffness_rate``/``oscillation_rate`` and, for exact stick–slip, the hybrid members;
+      ``stiffness_rate``/``oscillation_rate`` (``AbstractHybridSystem`` adds the modes and
+      switches of exact stick–slip and rigid impacts);
     - what is measured on it: ``output_names``/``outputs`` (displacements at named degrees
       of freedom [m or rad]), ``observable`` (the scalar signal that ``amplitude``, ``rms``,
       ``harmonic`` and the design objectives use), ``strokes`` (each absorber's motion

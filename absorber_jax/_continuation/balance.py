@@ -31,7 +31,7 @@ from .._periodic.harmonic import (
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
 from .driver import _Driver
-from .problem import _scale_at, _set_value
+from .problem import _scale_at, _set_value, bordered_newton
 
 
 class _BalanceProblem(eqx.Module):
@@ -61,53 +61,28 @@ class _BalanceProblem(eqx.Module):
 
 @eqx.filter_jit
 def _balance_corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
-    """Newton on ``[R(z); t_prev·(z - z_pred)] = 0`` from ``z_pred`` (steps by the balance's
-    own ``newton_solve``), stopped where the residual has not halved over two steps (a
-    ``patient`` first orbit: the whole budget); returns the point, its tangent, its
-    ``SteadyState`` (multipliers as the balance's ``stability`` asks) and its internal state
-    at ``t = 0``."""
+    """``problem.bordered_newton`` on the balance's residual from ``z_pred``, its steps by
+    the balance's own ``newton_solve`` (a ``patient`` first orbit: the whole budget);
+    returns the point, its tangent, its ``SteadyState`` (multipliers as the balance's
+    ``stability`` asks) and its internal state at ``t = 0``."""
     m = z_pred.shape[0] - 1
 
     def evaluate(z):
         J, r = jax.jacfwd(lambda v: (prob.residual(v),) * 2, has_aux=True)(z)
         bad = ~jnp.all(jnp.isfinite(r)) | ~jnp.all(jnp.isfinite(J))
-        return jnp.where(jnp.isfinite(J), J, 0.0), jnp.where(jnp.isfinite(r), r, 0.0), bad
+        return (jnp.where(jnp.isfinite(J), J, 0.0), jnp.where(jnp.isfinite(r), r, 0.0),
+                jnp.asarray(Status.SUCCESS), bad)
 
-    def newton_step(z, J, r):
-        A = jnp.concatenate([J, t_prev[None]], axis=0)
-        rhs = -jnp.concatenate([r, (t_prev @ (z - z_pred))[None]])
-        return newton_solve(A, rhs)
-
-    def body(c):
-        z, J, r, bad, k, res_prev, res_prev2, _ = c
-        z = z + newton_step(z, J, r)
-        J, r, bad = evaluate(z)
-        res = jnp.max(jnp.abs(r))
-        stalled = ~patient & (k >= 2) & (res > 0.5 * res_prev2)
-        done = bad | ((k >= 1) & (res <= tol)) | (k >= newton_steps) | stalled
-        return z, J, r, bad, k + 1, res, res_prev, done
-
-    inf = jnp.asarray(jnp.inf)
-    z, J, r, bad, k, _, _, _ = jax.lax.while_loop(
-        lambda c: ~c[-1], body,
-        (z_pred, jnp.zeros((m, m + 1)), jnp.zeros(m), jnp.asarray(False), jnp.asarray(0),
-         inf, inf, jnp.asarray(False)))
-    res = jnp.max(jnp.abs(r))
-    ok = ~bad & (res <= tol)
-    z = jnp.where(ok, z + newton_step(z, J, r), z)
-    status = jnp.where(bad, Status.NONFINITE, jnp.where(ok, Status.SUCCESS,
-                                                          Status.NO_CONVERGENCE))
-    A = jnp.concatenate([J, t_prev[None]], axis=0)
-    t = newton_solve(A, jnp.zeros(m + 1).at[-1].set(1.0))
-    t = t / jnp.linalg.norm(t)
-    t = t * jnp.where(t @ t_prev < 0, -1.0, 1.0)
+    z, J, t, status, res, k = bordered_newton(evaluate, z_pred, t_prev, tol, newton_steps,
+                                              patient, solve=newton_solve,
+                                              patient_growth=jnp.inf)
     sysp, forcp = prob.at(z[-1])
     c = prob.series(z) * prob.s0
     # Hill's method on the balance's Jacobian in the unknowns (a diagonal rescaling of the
     # states leaves its eigenvalues as they are), or the monodromy at the orbit's state
     mult = prob.balance.multipliers(sysp, forcp, c / state_scale(sysp, forcp),
                                     lambda: J[:, :m], prob.cfg)
-    ss = steady_from_series(sysp, forcp, c, mult, status, res, k - 1)
+    ss = steady_from_series(sysp, forcp, c, mult, status, res, k)
     x0 = fourier_matrices(prob.balance.harmonics, 1)[0][0] @ c
     return z, t, ss, x0
 

@@ -152,13 +152,10 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     pscale = abs(value0) if value0 != 0 else max(abs(lo), abs(hi))
     if orbit is not None:
         _check_balance(system, orbit, n, start)
-        prob = _BalanceProblem(system=system, forcing=forcing, s0=s0,
-                               pscale=jnp.asarray(pscale), balance=orbit, cfg=cfg,
-                               parameter=parameter)
+        g = None if guess is None else system.to_internal(jnp.asarray(guess, dtype=float))
+        prob, first = _balance_start(system, forcing, parameter, orbit, cfg, method, value0,
+                                     pscale, direction, g)
         drv = _BalanceDriver(prob, method, (lo, hi))
-        g = (system.linear_guess(forcing) if guess is None
-             else system.to_internal(jnp.asarray(guess, dtype=float)))
-        first = drv.first(np.asarray(g) / np.asarray(s0), value0 / pscale, direction, cfg)
         with _bar(method.max_points, parameter, progress) as bar:
             points, bifs, termination = _run(_follow(drv, first, None, locate, bar))
         return _finish(_branch(points, bifs, termination, drv, value0, system))
@@ -335,28 +332,54 @@ def _band_result(out, parameter, lo, hi, system):
     return tuple(_branch(*r, drv, v, system) for r, drv, v in out)
 
 
+def _start_cells(values, limits, live):
+    """Per start value, its two half-branches' ``(sign, cell)``: down (``-1``) and up, each
+    bounded by the nearest start with a first orbit (``live`` indices; every cell between
+    two of them is then followed from both ends, and a start without one leaves its cells
+    to its neighbours) and by the start's ``limits``."""
+    cells = []
+    for i, (v, (a, b)) in enumerate(zip(values, limits)):
+        below, above = values[live[live < i]], values[live[live > i]]
+        cells.append(((-1.0, (max(a, below[-1]) if below.size else a, v)),
+                      (1.0, (v, min(b, above[0]) if above.size else b))))
+    return cells
+
+
 def _cells(values, lo, hi):
     """Each start's limits: the neighbouring start values (the bounds at the ends)."""
     edges = np.concatenate([[lo], values, [hi]])
     return [(float(edges[i]), float(edges[i + 2])) for i in range(len(values))]
 
 
+def _balance_start(system, forcing, parameter, orbit, cfg, method, value, pscale, direction,
+                   guess=None):
+    """The balance problem of a branch started at ``value`` and its first orbit there
+    (balanced from ``guess``, an internal state, or the linear response), its tangent
+    along ``direction``."""
+    sysv, forcv = _set_value(system, forcing, parameter, float(value))
+    s0 = state_scale(sysv, forcv)
+    prob = _BalanceProblem(system=system, forcing=forcing, s0=s0, pscale=jnp.asarray(pscale),
+                           balance=orbit, cfg=cfg, parameter=parameter)
+    g = sysv.linear_guess(forcv) if guess is None else guess
+    first = _BalanceDriver(prob, method, (value, value)).first(
+        np.asarray(g) / np.asarray(s0), float(value) / pscale, direction, cfg)
+    return prob, first
+
+
 def _balance_pass(system, forcing, parameter, orbit, cfg, method, values, limits, bar):
-    """Half-branches of balanced orbits from the start ``values`` (start ``i`` followed down
-    and up within ``limits[i]``), one after the other, as ``_band_pass`` returns them."""
+    """Half-branches of balanced orbits from the start ``values`` (each start's first orbit
+    balanced once, then followed down and up within ``limits[i]``: a branch that turns at a
+    fold inside them follows the orbits beyond it), one after the other, as ``_band_pass``
+    returns them."""
     out = []
     for v, lim in zip(values, limits):
-        sysv, forcv = _set_value(system, forcing, parameter, float(v))
-        s0 = state_scale(sysv, forcv)
         pscale = abs(float(v)) if v != 0 else max(abs(lim[0]), abs(lim[1]))
-        guess = np.asarray(sysv.linear_guess(forcv)) / np.asarray(s0)
-        for direction in ("down", "up"):
-            prob = _BalanceProblem(system=system, forcing=forcing, s0=s0,
-                                   pscale=jnp.asarray(pscale), balance=orbit, cfg=cfg,
-                                   parameter=parameter)
+        prob, first = _balance_start(system, forcing, parameter, orbit, cfg, method, v,
+                                     pscale, "up")
+        for sign in (-1.0, 1.0):
             drv = _BalanceDriver(prob, method, lim)
-            first = drv.first(guess, float(v) / pscale, direction, cfg)
-            out.append((_run(_follow(drv, first, None, method.locate, bar)), drv, float(v)))
+            gen = _follow(drv, dict(first, t=sign * first["t"]), None, method.locate, bar)
+            out.append((_run(gen), drv, float(v)))
     return out
 
 
@@ -398,15 +421,10 @@ def _band_pass(base, method, values, limits, lanes, locate, bar, linear=True):
     keep = [i for i, f in enumerate(firsts) if f is not None]
     values, starters, firsts = values[keep], [starters[i] for i in keep], [firsts[i] for i in keep]
     limits = [limits[i] for i in keep]
-    # each start's half-branches are bounded by the nearest starts that have an orbit (every
-    # cell between two of them is then followed from both ends; a start without one leaves
-    # its cells to its neighbours) and by its limits
     live = np.flatnonzero([f["ok"] for f in firsts])
     drivers, gens = [], []
-    for i, (v, d, first, (a, b)) in enumerate(zip(values, starters, firsts, limits)):
-        below, above = values[live[live < i]], values[live[live > i]]
-        for sign, cell in ((-1.0, (max(a, below[-1]) if below.size else a, v)),
-                           (1.0, (v, min(b, above[0]) if above.size else b))):
+    for d, first, cells in zip(starters, firsts, _start_cells(values, limits, live)):
+        for sign, cell in cells:
             drv = _Driver(d.prob, method, cell)
             drivers.append(drv)
             gens.append(_follow(drv, dict(first, t=sign * first["t"]), None, locate, bar,

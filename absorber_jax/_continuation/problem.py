@@ -99,20 +99,85 @@ def _evaluate(prob, z):
     return jnp.where(jnp.isfinite(J), J, 0.0), jnp.where(jnp.isfinite(r), r, 0.0), st, bad
 
 
-def _tangent(J, t_prev):
-    """Unit null vector of ``J`` (``n × (n+1)``) oriented along ``t_prev``."""
+def _lstsq(A, b):
+    return jnp.linalg.lstsq(A, b)[0]
+
+
+def _tangent(J, t_prev, solve=_lstsq):
+    """Unit null vector of ``J`` (``n × (n+1)``) oriented along ``t_prev`` (the bordered
+    system solved by ``solve(A, b)``)."""
     A = jnp.concatenate([J, t_prev[None]], axis=0)
     e = jnp.zeros(A.shape[0]).at[-1].set(1.0)
-    t = jnp.linalg.lstsq(A, e)[0]
+    t = solve(A, e)
     t = t / jnp.linalg.norm(t)
     return t * jnp.where(t @ t_prev < 0, -1.0, 1.0)
 
 
+def bordered_newton(evaluate, z_pred, t_prev, tol, newton_steps, patient, *,
+                    solve=_lstsq, patient_growth=PATIENT_GROWTH):
+    """The continuation's corrector, for any residual: Newton on
+    ``[R(z); t_prev·(z - z_pred)] = 0`` from ``z_pred``, ``evaluate(z) -> (∂R/∂z, R,
+    status, bad)``, each bordered step solved by ``solve(A, b)``.  Returns ``(z, J, t,
+    status, residual, steps)``: the point, the Jacobian there, the new tangent, the
+    [`Status`][absorber_jax.Status], ``max |R|`` and the Newton steps taken.
+
+    It stops where a step's residual is within ``tol`` (after at least one step: a
+    predictor within tolerance would otherwise be kept with an error of order tol), where
+    the budget ``newton_steps`` is spent, where the evaluation failed, or where the
+    residual has not halved over the last two steps: outside Newton's basin, the step is
+    better halved and tried again than the budget spent, which a batch of branches
+    (band_continuation) would wait for.  Over two steps, not one: on strongly unstable orbits
+    the residual often grows at the second step and then falls quadratically (the
+    Kelvin-Voigt scene of scripts/benchmark_hard_contacts.py at 28.47 rad/s, |mu| = 50:
+    4e-3, 1.8e-4, 3.2e-4, 2.9e-6, 1.3e-8), and a one-step test there halved the arclength
+    step every other point.  A first orbit (``patient``: its guess may be far) is given up
+    only where the residual has grown ``patient_growth`` times over the least so far.
+
+    Converged, it takes one more Newton step with the Jacobian at hand, not evaluated
+    again (the residual is nonlinear in the parameter even on a linear structure, and a
+    residual just below tol can mean a state error of tol / (1 - |μ|) on a lightly damped
+    orbit; the step leaves ~tol²); the tangent is read off that Jacobian, a step of order
+    tol away."""
+
+    def newton_step(z, J, r):
+        A = jnp.concatenate([J, t_prev[None]], axis=0)
+        rhs = -jnp.concatenate([r, (t_prev @ (z - z_pred))[None]])
+        return solve(A, rhs)
+
+    def body(c):
+        # ``k`` Newton steps taken before this evaluation; the first pass evaluates the
+        # predictor itself (its step is zero: ``J`` and ``r`` start at zero), so the
+        # Jacobian's evaluation is traced and compiled once, not twice
+        z, J, r, st, bad, k, res_prev, res_prev2, res_min, done = c
+        z = z + newton_step(z, J, r)
+        J, r, st, bad = evaluate(z)
+        res = jnp.max(jnp.abs(r))
+        stalled = jnp.where(patient, res > patient_growth * res_min,
+                            (k >= 2) & (res > 0.5 * res_prev2))
+        done = bad | ((k >= 1) & (res <= tol)) | (k >= newton_steps) | stalled
+        return z, J, r, st, bad, k + 1, res, res_prev, jnp.minimum(res, res_min), done
+
+    n = z_pred.shape[0] - 1
+    inf = jnp.asarray(jnp.inf)
+    z, J, r, st, bad, k, _, _, _, _ = jax.lax.while_loop(
+        lambda c: ~c[-1], body,
+        (z_pred, jnp.zeros((n, n + 1)), jnp.zeros(n), jnp.asarray(Status.SUCCESS),
+         jnp.asarray(False), jnp.asarray(0), inf, inf, inf, jnp.asarray(False)))
+    res = jnp.max(jnp.abs(r))
+    ok = ~bad & (res <= tol)
+    z = jnp.where(ok, z + newton_step(z, J, r), z)
+    status = jnp.where(st != Status.SUCCESS, st,
+                       jnp.where(bad, Status.NONFINITE,
+                                 jnp.where(ok, Status.SUCCESS, Status.NO_CONVERGENCE)))
+    return z, J, _tangent(J, t_prev, solve), status, res, k - 1
+
+
 @eqx.filter_jit
 def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
-    """Newton on ``[Φ(z) - x; t_prev·(z - z_pred)] = 0`` from ``z_pred``; returns the point,
-    the new tangent, the point's ``SteadyState`` (its iterations included) and its
-    ``Section``.
+    """``bordered_newton`` on the shooting residual ``Φ(z) - x`` from ``z_pred``; returns the
+    point, the new tangent, the point's ``SteadyState`` (its iterations included, its
+    multipliers the eigenvalues of the last Jacobian's state block plus the identity) and
+    its ``Section``.
 
     Every Jacobian is integrated with steps controlled on the tangents too
     (``_integration.flow.accurate_tangents``): forward mode through steps chosen for the
@@ -122,58 +187,9 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     iterate's Jacobian gives the tangent and the multipliers with no further solve, and one
     integrator is compiled instead of two."""
     prob = dataclasses.replace(prob, cfg=accurate_tangents(prob.cfg))
-
-    def newton_step(z, J, r):
-        A = jnp.concatenate([J, t_prev[None]], axis=0)
-        rhs = -jnp.concatenate([r, (t_prev @ (z - z_pred))[None]])
-        return jnp.linalg.lstsq(A, rhs)[0]
-
-    def cond(c):
-        return ~c[-1]
-
-    def body(c):
-        # ``k`` Newton steps taken before this evaluation; the first pass evaluates the
-        # predictor itself (its step is zero: ``J`` and ``r`` start at zero), so the
-        # Jacobian's integration is traced and compiled once, not twice
-        z, J, r, st, bad, k, res_prev, res_prev2, res_min, done = c
-        z = z + newton_step(z, J, r)
-        J, r, st, bad = _evaluate(prob, z)
-        res = jnp.max(jnp.abs(r))
-        # a residual that has not halved over the last two steps is outside Newton's basin:
-        # stop there (the step is halved and tried again) rather than spend the budget, which
-        # a batch of branches (band_continuation) would wait for.  Over two steps, not one:
-        # on strongly unstable orbits the residual often grows at the second step and then
-        # falls quadratically (the Kelvin-Voigt scene of scripts/benchmark_hard_contacts.py
-        # at 28.47 rad/s, |mu| = 50: 4e-3, 1.8e-4, 3.2e-4, 2.9e-6, 1.3e-8), and a one-step
-        # test there halved the arclength step every other point.  A first orbit
-        # (``patient``: its guess may be far) is given up only where the residual has grown
-        # PATIENT_GROWTH times over the least so far
-        stalled = jnp.where(patient, res > PATIENT_GROWTH * res_min,
-                            (k >= 2) & (res > 0.5 * res_prev2))
-        # at least one Newton step (a predictor within tolerance would otherwise be kept
-        # with an error of order tol)
-        done = bad | ((k >= 1) & (res <= tol)) | (k >= newton_steps) | stalled
-        return z, J, r, st, bad, k + 1, res, res_prev, jnp.minimum(res, res_min), done
-
+    z, J, t, status, res, k = bordered_newton(lambda z: _evaluate(prob, z), z_pred, t_prev,
+                                              tol, newton_steps, patient)
     n = z_pred.shape[0] - 1
-    inf = jnp.asarray(jnp.inf)
-    z, J, r, st, bad, k, _, _, _, _ = jax.lax.while_loop(
-        cond, body, (z_pred, jnp.zeros((n, n + 1)), jnp.zeros(n), jnp.asarray(Status.SUCCESS),
-                     jnp.asarray(False), jnp.asarray(0), inf, inf, inf, jnp.asarray(False)))
-    k = k - 1
-    res = jnp.max(jnp.abs(r))
-    ok = ~bad & (res <= tol)
-    # converged: one more Newton step with the Jacobian at hand, not evaluated again (the
-    # residual is nonlinear in the parameter even on a linear structure, and a residual just
-    # below tol can mean a state error of tol / (1 - |μ|) on a lightly damped orbit; the
-    # step leaves ~tol²).  The tangent and the multipliers are read off that Jacobian, a
-    # step of order tol away: a Jacobian of their own would cost one more evaluation per
-    # point (3 instead of 2 on most points of a branch).
-    z = jnp.where(ok, z + newton_step(z, J, r), z)
-    status = jnp.where(st != Status.SUCCESS, st,
-                       jnp.where(bad, Status.NONFINITE,
-                                 jnp.where(ok, Status.SUCCESS, Status.NO_CONVERGENCE)))
-    t = _tangent(J, t_prev)
     mult = jnp.linalg.eigvals(J[:, :n] + jnp.eye(n))
     sysp, forcp = prob.in_section(z[-1])
     sc = state_scale(sysp, forcp)

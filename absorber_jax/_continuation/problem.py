@@ -13,7 +13,7 @@ from .._core.status import Status
 from .._integration.flow import (
     Config,
     accurate_tangents,
-    integrate_flow,
+    integrate_periods,
     period_map,
     state_scale,
 )
@@ -68,9 +68,8 @@ class _Problem(eqx.Module):
         """The unknowns' states after each ``n`` forcing periods for ``periods`` times from
         ``z`` (at its parameter), and the integrator's status."""
         sysp, forcp, sc, x = self._in_flow(z)
-        ts = jnp.arange(1, periods + 1) * (self.n * forcp.period)
-        ys, st = integrate_flow((sysp, forcp), x, ts[-1], ts,
-                                cfg=self.cfg.over_periods(self.n * periods))
+        ys, st = integrate_periods((sysp, forcp), x, 0.0, self.n * forcp.period, periods,
+                                   self.cfg.over_periods(self.n))
         return ys * sc / self.s0, st
 
 

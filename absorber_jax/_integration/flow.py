@@ -105,8 +105,8 @@ def integrate(dyn, x0, t0, t1, ts, cfg):
     (exact stick–slip) segment by segment (``_integration.stickslip``)."""
     system, forcing = dyn
     if is_hybrid(system):
-        ys, x, status, _, _, _ = _hybrid(dyn, x0, t0, t1, ts, cfg)
-        return (x[None] if ts is None else ys), status
+        # vmapped, lane by lane (see lane_by_lane): the lanes' event sequences differ
+        return lane_by_lane(_hybrid_states)(dyn, x0, t0, t1, ts, cfg)
     if large_state(system):
         # run lane by lane, a large state's plain integrations pay diffrax's per-stage loop
         # bookkeeping in full (vmapped lanes share it): unrolled stages, the same steps and
@@ -135,14 +135,42 @@ def integrate_flow(dyn, x0, t1, ts, *, cfg):
     return integrate(dyn, x0, 0.0, t1, ts, cfg)
 
 
+def integrate_periods(dyn, x0, t0, period, count, cfg):
+    """Scaled states of ``dyn`` after each of ``count`` times ``period`` [s] from ``x0`` at
+    ``t0``, and the status (the first failure's).  A hybrid system is integrated one
+    period at a time, saving nothing in between: diffrax's save times inside its
+    event-driven segments cost more than the periods' restarts (a rigid-impact march of
+    40 periods, ~15 impacts each, 0.64-0.83 ms a period saving at each, 0.37 ms period by
+    period)."""
+    if not is_hybrid(dyn[0]):
+        ts = t0 + period * jnp.arange(1, count + 1)
+        return integrate(dyn, x0, t0, ts[-1], ts, cfg.over_periods(count))
+
+    def one(x, k):
+        y, st = integrate(dyn, x, t0 + k * period, t0 + (k + 1) * period, None, cfg)
+        return y[0], (y[0], st)
+
+    _, (ys, sts) = jax.lax.scan(one, x0, jnp.arange(count))
+    failed = sts != Status.SUCCESS
+    return ys, jnp.where(jnp.any(failed), sts[jnp.argmax(failed)], Status.SUCCESS)
+
+
+def _hybrid_states(dyn, x0, t0, t1, ts, cfg):
+    """``integrate``'s hybrid states and status (no lane-by-lane wrapper: for the
+    derivatives, which ``_flow_jvp`` runs lane by lane as a whole)."""
+    ys, x, status, _, _, _ = _hybrid(dyn, x0, t0, t1, ts, cfg)
+    return (x[None] if ts is None else ys), status
+
+
 def event_counts(dyn, x0, t1, cfg):
     """Impacts and the time [s] a contact is held closed, from scaled state ``x0`` at
     ``t = 0`` to ``t1``, counted at the events of a hybrid system (rigid impacts happen at
     instants that no sampling of the orbit resolves); no derivatives."""
-    _, _, _, _, _, (impacts, closed) = _hybrid(
-        jax.lax.stop_gradient(dyn), jax.lax.stop_gradient(x0), 0.0,
-        jax.lax.stop_gradient(t1), None, cfg)
-    return impacts, closed
+    def counts(dyn, x0, t1, cfg):
+        _, _, _, _, _, out = _hybrid(dyn, x0, 0.0, t1, None, cfg)
+        return out
+
+    return lane_by_lane(counts)(*jax.lax.stop_gradient((dyn, x0, t1)), cfg)
 
 
 def _hybrid(dyn, x0, t0, t1, ts, cfg):
@@ -220,14 +248,21 @@ def _flow_jvp(primals, tangents, *, cfg):
         else:
             # through the explicit solver's steps (diffrax ForwardMode, one solve for all
             # directions)
-            vec, rebuild = _flat_active(primals[:k], active)
+            def jacobian(primals, cfg):
+                vec, rebuild = _flat_active(primals[:k], active)
 
-            def states(v):
-                dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
-                ys, status = integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
-                return ys, (ys, status)
+                def states(v):
+                    dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
+                    if hybrid:
+                        ys, status = _hybrid_states(dyn_, x0_, 0.0, t1_, ts_, cfg)
+                    else:
+                        ys, status = integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
+                    return ys, (ys, status)
 
-            jac, (ys, status) = jax.jacfwd(states, has_aux=True)(vec)
+                return jax.jacfwd(states, has_aux=True)(vec)
+
+            # hybrid systems' lanes each follow their own events (see lane_by_lane)
+            jac, (ys, status) = (lane_by_lane(jacobian) if hybrid else jacobian)(primals, cfg)
         # an integration gone wrong (at a trial Newton iterate, say) gives no derivative
         # rather than a non-finite one: the status flags the point, and the linear solves
         # downstream (lineax raises on NaN even with throw=False) see finite input

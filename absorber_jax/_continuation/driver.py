@@ -18,6 +18,7 @@ from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
 from .._integration.flow import event_counts, integrate_flow, make_config, state_scale
 from .._periodic.orbit import has_rigid_walls
+from .._systems.base import is_hybrid
 from .branch import Bifurcation, Branch
 from .constants import (
     CLOSE_RETURN_PERIODS,
@@ -236,7 +237,7 @@ def _march_many(prob, s0, z0, periods, ndev=1):
     def one(prob, s, z):
         return dataclasses.replace(prob, s0=s).samples(z, periods)
 
-    return lanes_on_devices(one, prob, s0, z0, ndev=ndev)
+    return lanes_on_devices(one, prob, s0, z0, ndev=ndev, serial=is_hybrid(prob.system))
 
 
 def _follow(drv, first, rejoin, locate, bar, defer=False):
@@ -363,7 +364,8 @@ def _corrector_many(prob, s0, section, z_pred, t_prev, patient, tol, newton_step
         return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol, newton_steps,
                           pa)
 
-    return lanes_on_devices(one, prob, s0, section, z_pred, t_prev, patient, ndev=ndev)
+    return lanes_on_devices(one, prob, s0, section, z_pred, t_prev, patient, ndev=ndev,
+                            serial=is_hybrid(prob.system))
 
 
 def _run_batched(gens, prob, method, lanes=None):

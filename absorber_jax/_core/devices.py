@@ -133,7 +133,7 @@ def by_parts(rows, size, solve, ndev, progress=False):
         [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
 
 
-def lanes_on_devices(one, shared, *lanes, ndev):
+def lanes_on_devices(one, shared, *lanes, ndev, serial=False):
     """``one(shared, *lane)`` vmapped over the lanes (the leading axis of ``lanes``) and the
     lanes split into ``ndev`` equal parts, one on each of the first ``ndev`` local devices,
     inside a jitted function: one SPMD program (``jax.shard_map``; no communication between the
@@ -143,8 +143,15 @@ def lanes_on_devices(one, shared, *lanes, ndev):
     corrector, 16 lanes on two CPU devices: 8.1 s to the first result against 10.9 s with a
     program per device, 0.84 s a call after against 1.04 s).  ``shared`` (a pytree, its arrays
     replicated) is the same for all lanes; the number of lanes must be a multiple of ``ndev``
-    (see ``device_parts``). Call it under ``one_blas_thread``."""
+    (see ``device_parts``). Call it under ``one_blas_thread``.
+
+    ``serial``: each device runs its lanes one after the other (``jax.lax.map``) instead of
+    vmapped in lockstep, for lanes whose loops differ in length: event-driven integrations
+    and the Newton iterations over them (a vmapped loop runs every lane's body until the
+    last lane ends)."""
     def f(shared, *lanes):
+        if serial:
+            return jax.lax.map(lambda lane: one(shared, *lane), lanes)
         return jax.vmap(lambda *lane: one(shared, *lane))(*lanes)
 
     if ndev <= 1:

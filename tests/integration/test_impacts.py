@@ -108,6 +108,41 @@ def test_sweep_under_vmap_equals_single_solves():
         assert fr.impacts[i] == float(one.impacts)
 
 
+def test_vmapped_lanes_each_follow_their_own_events():
+    # lanes of different frequencies and starts (2 to 26 impacts a period, chatter among
+    # them) vmapped together: each lane's period map and monodromy equal its own solve
+    # (the lanes are integrated one by one, not in lockstep), and periods integrated one
+    # at a time (the marches of band_continuation) equal the period map applied in turn
+    from absorber_jax._integration.flow import integrate_periods, make_config
+
+    system = rigid(e=0.947)
+    omegas = jnp.array([21.0, 28.5, 44.0])
+    forcing = aj.Harmonic(amplitude=F0, omega=21.0)
+    cfg = make_config(system, forcing)
+    x0 = jnp.array([[0.3, 0.2, 0.1, -0.4], [-0.2, 0.5, -0.3, 0.8], [0.1, -0.1, 0.0, 0.2]])
+
+    def period(w, x):
+        return aj.orbit_map(system, forcing.with_omega(w), x, 1, cfg)[0]
+
+    def monodromy(w, x):
+        return jax.jacfwd(lambda y: period(w, y))(x)
+
+    together = jax.jit(jax.vmap(lambda w, x: (period(w, x), monodromy(w, x))))(omegas, x0)
+    for i in range(3):
+        alone = jax.jit(lambda w, x: (period(w, x), monodromy(w, x)))(omegas[i], x0[i])
+        for a, b in zip(together, alone):
+            np.testing.assert_allclose(a[i], b, rtol=1e-12, atol=1e-12)
+    # on the stable orbit's side (44 rad/s), where the periods' restarts (rounding) do not
+    # grow from period to period
+    f = forcing.with_omega(44.0)
+    ys, st = jax.jit(lambda x: integrate_periods((system, f), x, 0.0, f.period, 5, cfg))(x0[2])
+    assert int(st) == 0
+    x = x0[2]
+    for k in range(5):
+        x = period(44.0, x)
+        np.testing.assert_allclose(ys[k], x, rtol=1e-9, atol=1e-9)
+
+
 def test_design_gradient_through_the_impacts_matches_central_differences():
     # a stable orbit with four impacts a period and no sticking
     omega, names = 37.5, ["gap", "e", "m", "k"]

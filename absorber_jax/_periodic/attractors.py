@@ -73,8 +73,10 @@ PERIOD_TOL = 1e-3
 class Attractor(eqx.Module):
     """One response found by [`attractors`][absorber_jax.attractors].
 
-    ``periodic``: a period-``period_multiple`` orbit (else quasi-periodic or chaotic, or not
-    settled within the marching budget); ``kind``: ``"periodic"``, ``"quasi-periodic"`` or
+    ``periodic``: a period-``period_multiple`` orbit: the observable's stroboscopic
+    samples over the window repeat after ``period_multiple`` periods and ``lyapunov`` is
+    below the chaos threshold (else quasi-periodic or chaotic, or not settled within the
+    marching budget); ``kind``: ``"periodic"``, ``"quasi-periodic"`` or
     ``"chaotic"`` (a non-periodic response is chaotic when ``lyapunov`` exceeds
     ``10 / (window T)``, ``T`` the forcing period: a neutral direction, such as a floating
     absorber or the angle on a torus, biases the finite-window estimate by about
@@ -340,6 +342,11 @@ def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, init
     ss, stats = _march_all(system, forcing, x0s, cfg, method, int(window), resolution)
     ss = jax.tree_util.tree_map(np.asarray, ss)
     peak, rms, amp, spr, sec, per, imp, lyap = (np.asarray(a) for a in stats)
+    # an observable that repeats while the motion diverges from its neighbours (a primary
+    # near resonance carrying a chattering ball: the primary's stroboscopic samples repeat
+    # to PERIOD_TOL, the ball's do not) is not a periodic attractor: chaotic, as λ says
+    chaos = CHAOS_MARGIN * float(forcing.omega) / (2 * np.pi * window)
+    per = np.where((per > 0) & (lyap > chaos), 0, per)
     label, groups = _group(per, amp, rms, rel_tol)
     found = []
     K = y0.shape[0]
@@ -349,7 +356,7 @@ def attractors(system: AbstractSystem, forcing: AbstractPeriodicForcing, *, init
         i = conv[0] if conv else g[0]
         periodic = int(per[i]) > 0
         lam = float(np.median(lyap[g]))
-        chaotic = lam > CHAOS_MARGIN * float(forcing.omega) / (2 * np.pi * window)
+        chaotic = lam > chaos
         kind = ("periodic" if periodic else "not periodic" if not np.isfinite(lam)
                 else "chaotic" if chaotic else "quasi-periodic")
         found.append(Attractor(

@@ -212,3 +212,23 @@ def test_flow_along_is_the_flow_derivative_along_one_direction():
     assert np.max(np.abs(np.asarray(vs[-1]) - ref)) < 1e-6 * np.max(np.abs(ref))
     plain = np.asarray(integrate_flow(dyn, x, T, None, cfg=cfg)[0][-1])
     assert np.max(np.abs(np.asarray(ys[-1]) - plain)) < 1e-7 * np.max(np.abs(plain))
+
+
+def test_a_periodic_label_never_goes_with_a_chaotic_lyapunov_exponent():
+    # the hard rigid-impact scene near the resonance of primary and ball held together
+    # (sqrt(k / (M + m)) = 28.9 rad/s): the primary's stroboscopic samples repeat to 1e-3
+    # of its amplitude while the chattering ball's motion diverges (λ ≈ 20 /s); such a lane
+    # is chaotic, not periodic, in the map, its attractors and the bifurcation diagram's
+    # colours alike
+    from absorber_jax._periodic.attractors import CHAOS_MARGIN
+
+    system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3,
+                               contact=aj.Restitution(0.947))
+    forcing = aj.Harmonic(amplitude=3.0, omega=28.8)
+    am = aj.attractors(system, forcing, samples=8)
+    chaos = CHAOS_MARGIN * 28.8 / (2 * np.pi * 40)
+    lyap, periods = np.asarray(am.lyapunov), am.periods()
+    assert np.all(lyap > chaos)            # every lane here diverges from its neighbours
+    assert np.all(periods == 0), periods
+    for a in am.attractors:
+        assert a.kind == "chaotic" and not a.periodic and a.period_multiple == 0

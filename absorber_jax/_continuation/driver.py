@@ -30,6 +30,7 @@ from .constants import (
     GRAZING_STEPS,
     GRAZING_TOL,
     JUMP_TOL,
+    LOOP_TOL,
     RESECTION,
     RESECTION_SAME,
     RESECTION_TANGENT,
@@ -71,7 +72,11 @@ class _Driver:
         fold: ``|t_p| >= RESECTION_TANGENT``).  Returns the point in the new unknowns, or
         ``point`` where nothing is to be moved or the correction failed."""
         sec, tp = point["sec"], float(point["t"][-1])
-        if not (sec.least_clearance <= 0 < sec.best_clearance     # an impacting orbit
+        # an impacting orbit: a sample in contact (a compliant wall), or impacts counted at
+        # their events (rigid walls, whose samples never touch: an impact drifting through
+        # the section makes the period map jump there)
+        impacting = sec.least_clearance <= 0 or float(point["ss"].impacts) > 0
+        if not (impacting and 0 < sec.best_clearance
                 and sec.clearance < RESECTION * sec.best_clearance
                 and abs(tp) >= RESECTION_TANGENT):
             return point
@@ -276,6 +281,9 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                     bif, beyond = yield from _graze(drv, points, float(np.sign(a["t"][-1])))
                     if bif is not None:
                         bifs.append(bif)
+                        if _passed_before(bifs):
+                            termination = "closed"
+                            break
                 if beyond is None:
                     # a located grazing the branch could not pass, or a collapse elsewhere
                     located = bif is not None and bif.located
@@ -293,6 +301,9 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             # a and b, then on from the orbit with the impact born there
             bif, beyond = yield from _through(drv, a, b, len(points) - 1)
             bifs.append(bif)
+            if _passed_before(bifs):
+                termination = "closed"
+                break
             if beyond is None:
                 termination = "grazing"
                 break
@@ -323,6 +334,8 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             bif = yield from _graze_between(drv, a, b, len(points) - 1, points[:-1])
             if bif.located or min(_impacts(a), _impacts(b)) == 0:
                 bifs.append(bif)
+                if _passed_before(bifs):
+                    termination = "closed"
         points.append(b)
         bar.update(1)
         bar.set_postfix({parameter: f"{p_b * pscale:.6g}", "h": f"{h:.2g}"})
@@ -343,6 +356,27 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
         elif it >= 6:
             h = max(0.6 * h, method.min_step)
     return points, bifs, termination
+
+
+def _passed_before(bifs):
+    """Whether the branch has gone round a closed loop: its last two located grazings are
+    two it passed already, one after the other (each the same orbit: its parameter value
+    within ``LOOP_TOL`` relative, its state within ``LOOP_TOL`` of its size).  A grazing
+    where sheets of impacting orbits meet may be passed again along another sheet (on the
+    hard rigid scene of scripts/benchmark_rigid_impacts.py the branch passes 27.204 rad/s
+    three times, between grazings at 27.16, 27.76-27.78 and 27.92 rad/s); the same two in
+    a row mean the branch retraces itself."""
+    graz = [b for b in bifs if not isinstance(b, tuple) and b.kind == "grazing" and b.located]
+    if not bifs or graz[-1:] != [bifs[-1]] or len(graz) < 4:
+        return False
+
+    def same(a, b):
+        size = float(np.max(np.abs(b.state)))
+        return (abs(a.value - b.value) <= LOOP_TOL * abs(b.value)
+                and float(np.max(np.abs(a.state - b.state))) <= LOOP_TOL * size)
+
+    return any(same(graz[k], graz[-2]) and same(graz[k + 1], graz[-1])
+               for k in range(len(graz) - 3))
 
 
 def _run(gen):

@@ -553,3 +553,28 @@ def test_a_harmonic_balance_branch_has_shootings_folds_and_floquet_labels():
                     assert st == stable[i], (w, a, hb.values[i], hb_amp[i])
                     compared += 1
     assert compared > 20, compared
+
+
+def test_a_branch_retracing_two_grazings_in_a_row_is_closed():
+    # a branch through the grazings A, B, C, D, B', C' (B' and C' the same orbits as B and
+    # C: parameter values and states within LOOP_TOL) has gone round a loop; one that only
+    # passes one grazing again (a junction of sheets: A, B, C, B'), or passes two again
+    # that are not the same orbits, has not
+    from absorber_jax._continuation.branch import Bifurcation
+    from absorber_jax._continuation.driver import _passed_before
+
+    def g(value, state, kind="grazing", located=True):
+        return Bifurcation(kind=kind, value=value, amplitude=1.0, state=np.asarray(state),
+                           multipliers=np.zeros(4), index=0, period_multiple=1,
+                           located=located, evaluations=1)
+
+    s = np.array([1.0, 2.0, -1.0, 0.5])
+    A, B, C, D = (g(v, s * v) for v in (25.18, 27.20, 27.78, 27.92))
+    Bp, Cp = g(27.20 * (1 + 1e-9), B.state + 1e-9), g(27.78, C.state * (1 - 1e-9))
+    assert _passed_before([A, B, C, D, Bp, Cp])
+    assert not _passed_before([A, B, C, Bp])
+    assert not _passed_before([A, B, C, D, Bp, g(27.78, C.state * 1.01)])
+    assert not _passed_before([A, B, C, D, Bp, g(27.78 * 1.001, C.state)])
+    # folds between the grazings do not matter; unlocated grazings are not compared
+    assert _passed_before([A, B, g(26.0, s, kind="fold"), C, D, Bp, Cp])
+    assert not _passed_before([A, B, C, D, Bp, g(27.78, C.state, located=False)])

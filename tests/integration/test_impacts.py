@@ -356,6 +356,50 @@ def test_continuation_passes_the_grazing_where_a_fifth_impact_is_born():
         assert sum(k == "impact" for _, k in events) == 5
 
 
+def test_continuation_moves_its_section_off_an_impact_and_follows_the_branch_on():
+    # the same branch on: the five-impact orbits born at 25.18 rad/s fold back down to
+    # 20.09 rad/s, turn stable and go up to 26 rad/s.  At 21.51 rad/s on the way down an
+    # impact drifts through the Poincaré section at t = 0 (the period map jumps there); the
+    # branch moves its section to where the ball flies farthest from the walls and goes on
+    e = aj.restitution_of(aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True),
+                          SCENE["m"], SCENE["M"])
+    br = aj.continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=20.0), "omega",
+                         bounds=(20.0, 26.0))
+    assert br.termination == "bounds" and br.reached
+    v, impacts = np.asarray(br.values), np.asarray(br.steady.impacts)
+    (graze,) = br.of_kind("grazing")
+    folds = br.of_kind("fold")
+    assert len(folds) == 1 and 20.0 < folds[0].value < 20.2
+    born = np.arange(graze.index + 1, len(v))
+    assert np.all(impacts[born] == 5.0)
+    down = born[born <= folds[0].index]
+    assert v[down].min() < 21.3 and v[-1] == 26.0      # past 21.51 down, and back up
+    stable = np.flatnonzero(np.asarray(br.stable))
+    assert stable.size >= 3 and np.all(impacts[stable] == 5.0)
+    # points past the old stop, a stable one and an unstable one on the way back up, each
+    # periodic with five impacts for the event-exact reference, labelled by its multipliers
+    scale = np.array([1.0, 1.0, 1.0, 1.0]) * SCENE["gap"]
+    checks = [down[-1], stable[len(stable) // 2], len(v) - 2]
+    for j in checks:
+        W = float(v[j])
+        T = 2 * np.pi / W
+        y0 = np.asarray(br.states[j])
+        sc = scale * np.array([1.0, W, 1.0, W])
+        y1, events = reference(W, e).run(y0, 0.0, T)
+        assert np.max(np.abs(y1[-1] - y0) / sc) < 1e-7
+        assert sum(k == "impact" for _, k in events) == 5
+        J = np.zeros((4, 4))
+        for i in range(4):
+            h = np.zeros(4)
+            h[i] = 1e-7 * sc[i]
+            J[:, i] = (reference(W, e).run(y0 + h, 0.0, T)[0][-1]
+                       - reference(W, e).run(y0 - h, 0.0, T)[0][-1]) / (2 * h[i])
+        mu_ref = np.max(np.abs(np.linalg.eigvals(J)))
+        assert bool(br.stable[j]) == bool(mu_ref < 1.0)
+        np.testing.assert_allclose(np.max(np.abs(np.asarray(br.multipliers[j]))), mu_ref,
+                                   rtol=1e-4)
+
+
 @pytest.mark.slow
 def test_sweep_continuation_and_attractor_map_agree_on_an_impacting_orbit():
     # one stable orbit (37.5 rad/s, four impacts a period) seen by every entry point

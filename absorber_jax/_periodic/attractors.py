@@ -48,7 +48,7 @@ from .._core.checks import check_scalar, require_x64
 from .._core.legacy import no_more
 from .._core.status import Status
 from .._core.units import Signals, signals_of
-from .._integration.flow import flow_along, make_config, state_scale
+from .._integration.flow import flow_along, make_config, over_lanes, state_scale
 from .._integration.settings import integrator_from
 from .._systems.base import AbstractSystem
 from .._systems.forcing import AbstractPeriodicForcing
@@ -265,7 +265,7 @@ def _march_all(system, forcing, x0s, cfg, method, window, samples):
                  jnp.where(ok & jnp.isfinite(lyap), lyap, nan))
         return ss, stats
 
-    return jax.vmap(lane)(x0s)
+    return over_lanes(lane, system)(x0s)
 
 
 def _sample_states(system, forcing, samples, spread, seed):

@@ -367,7 +367,7 @@ def _passed_before(bifs):
     three times, between grazings at 27.16, 27.76-27.78 and 27.92 rad/s); the same two in
     a row mean the branch retraces itself."""
     graz = [b for b in bifs if not isinstance(b, tuple) and b.kind == "grazing" and b.located]
-    if not bifs or graz[-1:] != [bifs[-1]] or len(graz) < 4:
+    if len(graz) < 4 or graz[-1] is not bifs[-1]:
         return False
 
     def same(a, b):

@@ -307,19 +307,6 @@ def _by_sensitivities(dyn, cfg):
     return (implicit or cfg.tangent_control or large) and not is_hybrid(dyn[0])
 
 
-def over_lanes(fn, system):
-    """``fn`` over the leading axis (the lanes) of its arguments: vmapped, or for a hybrid
-    ``system`` one lane after the other (``jax.lax.map``), each lane's events and Newton
-    iterations its own (a vmapped loop runs every lane until the last ends), and the
-    event-driven integration traced once (vmapped, it is traced again for
-    ``lane_by_lane``'s rule).  The rigid-ball building sweep of
-    scripts/benchmark_rigid_impacts.py, cache off: first call 161 s vmapped, 118 s lane
-    after lane (tracing 94 s and 40 s), 4.1 s and 3.6 s compiled."""
-    if is_hybrid(system):
-        return lambda *args: jax.lax.map(lambda a: fn(*a), args)
-    return jax.vmap(fn)
-
-
 def lane_by_lane(fn):
     """``fn`` (of arrays, returning arrays), evaluated one lane at a time (``jax.lax.map``)
     when vmapped, instead of all lanes in lockstep.

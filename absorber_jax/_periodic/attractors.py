@@ -45,12 +45,13 @@ import numpy as np
 
 from .._core import tables
 from .._core.checks import check_scalar, require_x64
+from .._core.devices import over_lanes
 from .._core.legacy import no_more
 from .._core.status import Status
 from .._core.units import Signals, signals_of
-from .._integration.flow import flow_along, make_config, over_lanes, state_scale
+from .._integration.flow import flow_along, make_config, state_scale
 from .._integration.settings import integrator_from
-from .._systems.base import AbstractSystem
+from .._systems.base import AbstractSystem, is_hybrid
 from .._systems.forcing import AbstractPeriodicForcing
 from .marching import Marching
 from .orbit import SteadyState, contact_statistics, parabolic_peak
@@ -265,7 +266,7 @@ def _march_all(system, forcing, x0s, cfg, method, window, samples):
                  jnp.where(ok & jnp.isfinite(lyap), lyap, nan))
         return ss, stats
 
-    return over_lanes(lane, system)(x0s)
+    return over_lanes(lane, is_hybrid(system))(x0s)
 
 
 def _sample_states(system, forcing, samples, spread, seed):

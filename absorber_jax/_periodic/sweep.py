@@ -14,15 +14,15 @@ import numpy as np
 
 from .._core import tables
 from .._core.checks import check_time_grid, require_x64
-from .._core.devices import by_parts, put
+from .._core.devices import by_parts, over_lanes, put
 from .._core.legacy import moved, no_more
 from .._core.progress import PointProgress
 from .._core.status import Status, nan_where_failed
 from .._core.units import Signals, signals_of
-from .._integration.flow import lane_by_lane, large_state, over_lanes, state_scale
+from .._integration.flow import lane_by_lane, large_state, state_scale
 from .._integration.settings import integrator_from
 from .._integration.simulate import choose_solver
-from .._systems.base import AbstractSystem
+from .._systems.base import AbstractSystem, is_hybrid
 from .._systems.forcing import at_frequency, sweep_shape
 from .._systems.params import replace_params, resolve
 from .._systems.scales import warn_scales
@@ -126,7 +126,7 @@ def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, method, names,
     def point(w, pv, g):
         return _one_point(_with(system, names, pv), w, amplitude, g, cfg, method, with_floquet)
 
-    return over_lanes(point, system)(omegas, pvals, guesses)
+    return over_lanes(point, is_hybrid(system))(omegas, pvals, guesses)
 
 
 @eqx.filter_jit
@@ -135,7 +135,7 @@ def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floqu
         return march_then_shoot(_with(system, names, pv), _forcing(amplitude, w), cfg, method,
                                 with_floquet=with_floquet)
 
-    return over_lanes(point, system)(omegas, pvals)
+    return over_lanes(point, is_hybrid(system))(omegas, pvals)
 
 
 def _retry_batch(system):
@@ -206,8 +206,7 @@ def _parallel_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_f
         return _one_point(_with(system, names, pv), w, amplitude, nan, cfg, method,
                           with_floquet)
 
-    return over_lanes(point, system)(omegas, pvals)
-
+    return over_lanes(point, is_hybrid(system))(omegas, pvals)
 
 
 # points one lane of a chained sweep solves in a row (see _chained_sweep)

@@ -30,6 +30,10 @@ GRAZING_LOOKBACK = 12
 # samples per period of the orbit whose closest approach to the walls is measured (each
 # apex of its flights then refined by the cubic Hermite interpolant of its interval)
 GRAZING_SAMPLES = 4096
+# ... and that close integration is skipped where the corrector's own samples put every free
+# flight farther than this from the walls (relative to the motion's length scale; their
+# apexes are within ~1e-9 of it: see driver._approach)
+APPROACH_MARGIN = 1e-6
 
 
 # a bifurcation is located when its bracket has shrunk to locate_tol and the test function

@@ -17,10 +17,11 @@ from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
 from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
 from .._integration.flow import event_counts, integrate_flow, make_config, state_scale
-from .._periodic.orbit import has_rigid_walls
+from .._periodic.orbit import free_flight_apexes, has_rigid_walls, wall_kinematics
 from .._systems.base import is_hybrid
 from .branch import Bifurcation, Branch
 from .constants import (
+    APPROACH_MARGIN,
     CLOSE_RETURN_PERIODS,
     CLOSE_RETURN_SKIP,
     CLOSE_RETURNS,
@@ -214,15 +215,19 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     prob = drivers[0].prob
     k = len(drivers)
     size = max(k, lanes or k)
-    parts = device_parts(size)
-    pad = [0] * (size - k)
+    parts = 1 if is_hybrid(prob.system) else device_parts(size)
+    at = _placed(k, size, parts)
+    slot = np.zeros(size, dtype=int)                # padding: the first march again
+    slot[at] = np.arange(k)
+    live = np.zeros(size, dtype=bool)
+    live[at] = True
     s0 = np.stack([np.asarray(d.prob.s0) for d in drivers])
     z = np.stack(z0s)
     with one_blas_thread(parts):
         ys, st = jax.tree_util.tree_map(np.asarray, _march_many(
-            prob, s0[list(range(k)) + pad], z[list(range(k)) + pad], periods, parts))
+            prob, s0[slot], z[slot], live, periods, parts))
     out = []
-    for y, s, z0 in zip(ys[:k, CLOSE_RETURN_SKIP:], st[:k], z0s):
+    for y, s, z0 in zip(ys[at, CLOSE_RETURN_SKIP:], st[at], z0s):
         picks = []
         if s == Status.SUCCESS and np.all(np.isfinite(y)):
             d = np.max(np.abs(np.diff(y, axis=0)) / (np.std(y, axis=0) + 1e-12), axis=1)
@@ -236,13 +241,15 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
 
 
 @eqx.filter_jit
-def _march_many(prob, s0, z0, periods, ndev=1):
+def _march_many(prob, s0, z0, live, periods, ndev=1):
     """``_Problem.samples`` vmapped over state scales and starting points, the lanes
-    split over ``ndev`` local devices (``lanes_on_devices``)."""
+    split over ``ndev`` local devices (``lanes_on_devices``; ``live`` as
+    ``_corrector_many``)."""
     def one(prob, s, z):
         return dataclasses.replace(prob, s0=s).samples(z, periods)
 
-    return lanes_on_devices(one, prob, s0, z0, ndev=ndev, serial=is_hybrid(prob.system))
+    return lanes_on_devices(one, prob, s0, z0, ndev=ndev, serial=is_hybrid(prob.system),
+                            live=live)
 
 
 def _follow(drv, first, rejoin, locate, bar, defer=False):
@@ -390,16 +397,26 @@ def _run(gen):
 
 
 @eqx.filter_jit
-def _corrector_many(prob, s0, section, z_pred, t_prev, patient, tol, newton_steps, ndev=1):
+def _corrector_many(prob, s0, section, z_pred, t_prev, patient, live, tol, newton_steps,
+                    ndev=1):
     """``_corrector`` vmapped over the branches' state scales, sections, predictors,
     hyperplanes and patience (the system, forcing and parameter scale shared), the lanes
-    split over ``ndev`` local devices (``lanes_on_devices``)."""
+    split over ``ndev`` local devices (``lanes_on_devices``; lanes whose ``live`` is False
+    pad the batch, skipped where the lanes run one after the other)."""
     def one(prob, s, j, z, t, pa):
         return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol, newton_steps,
                           pa)
 
     return lanes_on_devices(one, prob, s0, section, z_pred, t_prev, patient, ndev=ndev,
-                            serial=is_hybrid(prob.system))
+                            serial=is_hybrid(prob.system), live=live)
+
+
+def _placed(count, size, ndev):
+    """The lanes of a batch of ``size`` (split into ``ndev`` equal parts, one per device)
+    that hold its ``count`` requests: dealt to the devices in turn, so that each gets its
+    share where the lanes run one after the other."""
+    part = size // ndev
+    return np.array([(j % ndev) * part + j // ndev for j in range(count)], dtype=int)
 
 
 def _run_batched(gens, prob, method, lanes=None):
@@ -413,7 +430,12 @@ def _run_batched(gens, prob, method, lanes=None):
     device, in one SPMD program (``lanes_on_devices``): the Kelvin–Voigt band of
     scripts/benchmark_hard_contacts.py takes 47.8 s on two CPU devices against 59 s on one.
     One SPMD program traces the corrector's Jacobian integration once, where a program per
-    device traces it per device (the first 16-lane call: 6.6 s against 10.8 s)."""
+    device traces it per device (the first 16-lane call: 6.6 s against 10.8 s).
+
+    Event-driven (hybrid) systems run their lanes one after the other on one device
+    (``lanes_on_devices``), the padding lanes skipped, in batches of ``lanes`` alone: the
+    hard rigid band of scripts/benchmark_rigid_impacts.py ran 12016 lanes for 1840
+    requests, in 20 s where the padding, computed, had cost 45 s."""
     lanes = len(gens) if lanes is None else lanes
     # the few branches snaking through folds, or locating bifurcations, go on for many more
     # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
@@ -422,7 +444,10 @@ def _run_batched(gens, prob, method, lanes=None):
     # more compilation than it saved (the Kelvin-Voigt band on 2 CPU devices, one machine:
     # sizes 16/8/4 65.6 s, 16/4 60.9 and 62.1 s, 16/2 65.0 s, 16 alone 77.4 s, the same
     # 606 points; the Hertz band 123.9 s and 123.1 s)
-    sizes = [lanes] + ([lanes // 4] if lanes >= 8 else [])
+    # lanes run one after the other (hybrid systems: see ``over_lanes``) skip the padding,
+    # so one size serves: no second compilation
+    serial = is_hybrid(prob.system)
+    sizes = [lanes] + ([lanes // 4] if lanes >= 8 and not serial else [])
     results = [None] * len(gens)
     pending = {}
     for i, g in enumerate(gens):
@@ -433,16 +458,21 @@ def _run_batched(gens, prob, method, lanes=None):
     while pending:
         idx = list(pending)[:sizes[0]]          # more requests than lanes: the first ones
         size = min(z for z in sizes if z >= len(idx))
-        reqs = [pending[i] for i in idx] + [pending[idx[0]]] * (size - len(idx))
+        parts = 1 if serial else device_parts(size)
+        at = _placed(len(idx), size, parts)
+        slot = np.zeros(size, dtype=int)           # padding: the first request again
+        slot[at] = np.arange(len(idx))
+        reqs = [pending[idx[k]] for k in slot]
+        live = np.zeros(size, dtype=bool)
+        live[at] = True
         s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
         sec = np.stack([np.asarray(r[0].prob.section) for r in reqs])
         zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
         pa = np.asarray([bool(r[3]) for r in reqs])
-        parts = device_parts(size)
         with one_blas_thread(parts):
             out = jax.tree_util.tree_map(np.asarray, _corrector_many(
-                prob, s0, sec, zp, tp, pa, method.tol, method.newton_steps, parts))
-        for j, i in enumerate(idx):
+                prob, s0, sec, zp, tp, pa, live, method.tol, method.newton_steps, parts))
+        for j, i in zip(at, idx):
             point = pending[i][0].point(*jax.tree_util.tree_map(lambda a, j=j: a[j], out))
             try:
                 pending[i] = gens[i].send(point)
@@ -502,56 +532,20 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
 @eqx.filter_jit
 def _orbit_kinematics(system, forcing, x0, ts, cfg):
     """Each wall's penetration [m], its rate [m/s] and its acceleration [m/s²] along the
-    orbit from internal state ``x0`` at ``ts[0] = 0``, saved at ``ts``: the hybrid orbit
-    (its impacts and holds included) sampled, the rates those of free flight (every
-    contact open) at each sample; and its impacts.  One compilation per system
-    structure."""
+    orbit from internal state ``x0`` at ``ts[0] = 0``, saved at ``ts`` (``wall_kinematics``:
+    the hybrid orbit, its impacts and holds included, sampled), and its impacts.  One
+    compilation per system structure."""
     scale = state_scale(system, forcing)
     ys, _ = integrate_flow((system, forcing), x0 / scale, ts[-1], ts, cfg=cfg)
     impacts, _ = event_counts((system, forcing), x0 / scale, ts[-1], cfg)
-    free = jnp.zeros_like(system.mode_of(0.0, system.rest_state(), forcing))
-
-    def kinematics(t, s):
-        def rate(t, s):
-            v = system.mode_rate(t, s, forcing, free)
-            return jax.jvp(system.penetrations, (s,), (v,))[1]
-
-        v = system.mode_rate(t, s, forcing, free)
-        r, a = jax.jvp(rate, (t, s), (jnp.ones_like(t), v))
-        return system.penetrations(s), r, a
-
-    return jax.vmap(kinematics)(ts, ys * scale), impacts
+    return wall_kinematics(system, forcing, ts, ys * scale), impacts
 
 
 def _apexes(pen, rate, acc, dt, length, speed):
-    """The apexes of free flight towards a wall among sampled penetrations ``pen``, rates
-    ``rate`` and accelerations ``acc`` ``(N + 1, walls)`` a time ``dt`` apart: where the rate
-    turns from approaching to leaving *smoothly* (the change over the interval the
-    trapezoidal rule of the accelerations, within a tenth: an impact reverses the rate at
-    once), refined by the cubic Hermite interpolant of the interval.  Intervals that touch a
-    hold (at the wall, at rest relative to it) are not apexes.  Returns their heights [m]
-    (the penetration there, at least the interval's ends) and times [s] from the first
-    sample."""
-    held = (np.abs(rate) <= 1e-12 * speed) & (np.abs(pen) <= 1e-10 * length)
-    p0, p1, r0, r1 = pen[:-1], pen[1:], rate[:-1] * dt, rate[1:] * dt
-    smooth = np.abs(r1 - r0 - 0.5 * (acc[:-1] + acc[1:]) * dt**2) <= 0.1 * (r0 - r1)
-    turn = (r0 > 0) & (r1 <= 0) & smooth & ~held[:-1] & ~held[1:]
-    start = np.nonzero(turn)[0]
-    p0, p1, r0, r1 = p0[turn], p1[turn], r0[turn], r1[turn]
-    # H(τ) = (2τ³ - 3τ² + 1) p0 + (τ³ - 2τ² + τ) r0 + (-2τ³ + 3τ²) p1 + (τ³ - τ²) r1
-    a = 6 * (p0 - p1) + 3 * (r0 + r1)
-    b = 6 * (p1 - p0) - 4 * r0 - 2 * r1
-    c = r0
-    disc = np.sqrt(np.maximum(b * b - 4 * a * c, 0.0))
-    q = -0.5 * (b + np.where(b < 0, -1.0, 1.0) * disc)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        roots = np.stack([q / a, c / q])                     # both roots, stably
-    inside = (roots >= 0) & (roots <= 1)
-    tau = np.where(inside[0], roots[0], np.where(inside[1], roots[1], 0.5))
-    tau = np.clip(np.nan_to_num(tau, nan=0.5), 0.0, 1.0)
-    h = ((2 * tau**3 - 3 * tau**2 + 1) * p0 + (tau**3 - 2 * tau**2 + tau) * r0
-         + (-2 * tau**3 + 3 * tau**2) * p1 + (tau**3 - tau**2) * r1)
-    return np.maximum(h, np.maximum(p0, p1)), (start + tau) * dt
+    """The apexes of free flight towards a wall (``free_flight_apexes``): their heights [m]
+    and times [s] from the first sample."""
+    turn, heights, times = free_flight_apexes(pen, rate, acc, dt, length, speed)
+    return heights[turn], times[turn]
 
 
 def _apex(pen, rate, acc, dt, length, speed):
@@ -569,8 +563,21 @@ def _approach(drv, point):
     positive where one passes through it (an excursion shorter than an integrator step,
     which event location does not see: then a positive value, as where the orbit
     integrated closely has more impacts).  Also the length scale of the motion [m].  Kept
-    in ``point`` (a point is asked again while a grazing is bracketed)."""
+    in ``point`` (a point is asked again while a grazing is bracketed).
+
+    The corrector's own samples of the orbit (``Section.approach``, 256 a period at the
+    branch's tolerance) decide where they put every flight farther than ``APPROACH_MARGIN``
+    of the length scale from the walls: their apex heights are within ~1e-9 of the motion
+    (cubic Hermite), and an excursion through a wall, seen or not by event location, shows
+    on them as a flight reaching it.  Only orbits nearer grazing are integrated again
+    closely (about 4 ms a point on the hard rigid scene of
+    scripts/benchmark_rigid_impacts.py, 8 of its band's 30 s)."""
     if "approach" not in point:
+        length = float(np.max(np.abs(np.asarray(drv.prob.s0))))
+        coarse = float(point["sec"].approach)
+        if coarse < -APPROACH_MARGIN * length:
+            point["approach"] = (max(coarse, -length), length)
+            return point["approach"]
         system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
         kinematics, dt, length, impacts = _sampled(drv, system, forcing, point["x0"])
         if impacts != _impacts(point):

@@ -16,6 +16,7 @@ import threading
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
@@ -133,20 +134,44 @@ def by_parts(rows, size, solve, ndev, progress=False):
         [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
 
 
-def over_lanes(fn, serial):
+def over_lanes(fn, serial, masked=False):
     """``fn`` over the leading axis (the lanes) of its arguments: vmapped, or with ``serial``
     one lane after the other (``jax.lax.map``), for lanes whose loops differ in length
     (event-driven integrations and the Newton iterations over them: a vmapped loop runs
     every lane's body until the last lane ends).  The rigid-ball building sweep of
     scripts/benchmark_rigid_impacts.py, cache off: first call 161 s vmapped, 118 s lane
     after lane (its tracing 94 s and 40 s: vmapped, the integration's ``lane_by_lane`` rule
-    traces it a second time), 4.1 s and 3.6 s compiled."""
-    if serial:
+    traces it a second time), 4.1 s and 3.6 s compiled.
+
+    ``masked``: the first argument is a boolean per lane, False for a padding lane (a batch
+    filled up to its compiled size); lane after lane, a padding lane is skipped (its outputs
+    are zeros, to be discarded), where vmapped it costs nothing extra and is computed.  The
+    hard rigid band of scripts/benchmark_rigid_impacts.py ran 3976 corrector lanes for 1840
+    requests, the padding more than half of its corrector time."""
+    if not serial:
+        return jax.vmap((lambda live, *a: fn(*a)) if masked else fn)
+    if not masked:
         return lambda *args: jax.lax.map(lambda a: fn(*a), args)
-    return jax.vmap(fn)
+
+    def run(live, *args):
+        # the outputs' shapes, for the zeros of a skipped lane, from the first lane traced
+        # as the lanes are (inside a map: equinox caches closure conversions by shape, and
+        # their arguments' sharding differs inside and outside the map in ``shard_map``)
+        shapes = jax.eval_shape(lambda: jax.lax.map(lambda a: fn(*a),
+                                                    tuple(a[:1] for a in args)))
+        shapes = jax.tree_util.tree_map(lambda s: jax.ShapeDtypeStruct(s.shape[1:], s.dtype),
+                                        shapes)
+
+        def lane(a):
+            return jax.lax.cond(a[0], lambda: fn(*a[1:]), lambda: jax.tree_util.tree_map(
+                lambda s: jnp.zeros(s.shape, s.dtype), shapes))
+
+        return jax.lax.map(lane, (live,) + args)
+
+    return run
 
 
-def lanes_on_devices(one, shared, *lanes, ndev, serial=False):
+def lanes_on_devices(one, shared, *lanes, ndev, serial=False, live=None):
     """``one(shared, *lane)`` vmapped over the lanes (the leading axis of ``lanes``) and the
     lanes split into ``ndev`` equal parts, one on each of the first ``ndev`` local devices,
     inside a jitted function: one SPMD program (``jax.shard_map``; no communication between the
@@ -158,9 +183,17 @@ def lanes_on_devices(one, shared, *lanes, ndev, serial=False):
     replicated) is the same for all lanes; the number of lanes must be a multiple of ``ndev``
     (see ``device_parts``). Call it under ``one_blas_thread``.
 
-    ``serial``: each device runs its lanes one after the other (``over_lanes``)."""
+    ``serial``: each device runs its lanes one after the other (``over_lanes``), skipping
+    those whose ``live`` flag (a boolean per lane, if given) is False.  Event-driven
+    integrations run on one device (``ndev=1``): their event location's implicit derivative
+    (optimistix, lineax) fails to trace inside ``shard_map``, its closure conversion cached
+    with the manual mesh's sharding and checked against shapes without it."""
+    masked = live is not None
+    if masked:
+        lanes = (live,) + lanes
+
     def f(shared, *lanes):
-        return over_lanes(lambda *lane: one(shared, *lane), serial)(*lanes)
+        return over_lanes(lambda *lane: one(shared, *lane), serial, masked)(*lanes)
 
     if ndev <= 1:
         return f(shared, *lanes)

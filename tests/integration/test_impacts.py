@@ -143,6 +143,76 @@ def test_vmapped_lanes_each_follow_their_own_events():
         np.testing.assert_allclose(ys[k], x, rtol=1e-9, atol=1e-9)
 
 
+def test_padding_lanes_run_one_after_the_other_are_skipped():
+    # a batch padded to its compiled size (band_continuation's corrector rounds): lane by
+    # lane, a padding lane is not run (its outputs zeros) and the real lanes equal their
+    # solves alone; vmapped, every lane is computed
+    from absorber_jax._core.devices import lanes_on_devices
+
+    system = rigid(e=0.947)
+    forcing = aj.Harmonic(amplitude=F0, omega=21.0)
+    from absorber_jax._integration.flow import make_config
+
+    cfg = make_config(system, forcing)
+    omegas = jnp.array([21.0, 28.5, 44.0, 21.0])
+    x0 = jnp.array([[0.3, 0.2, 0.1, -0.4], [-0.2, 0.5, -0.3, 0.8], [0.1, -0.1, 0.0, 0.2],
+                    [0.3, 0.2, 0.1, -0.4]])
+    live = jnp.array([True, False, True, False])
+
+    def one(shared, w, x):
+        return aj.orbit_map(system, forcing.with_omega(w), x, 1, shared)
+
+    for serial in (True, False):
+        out, st = jax.jit(lambda c, w, x, lv, serial=serial: lanes_on_devices(
+            one, c, w, x, ndev=1, serial=serial, live=lv))(cfg, omegas, x0, live)
+        for i in range(4):
+            if serial and not live[i]:
+                assert np.all(np.asarray(out[i]) == 0.0) and int(st[i]) == 0
+                continue
+            alone = aj.orbit_map(system, forcing.with_omega(float(omegas[i])), x0[i], 1, cfg)
+            np.testing.assert_allclose(out[i], alone[0], rtol=1e-12, atol=1e-12)
+
+
+def test_sampled_flight_apexes_equal_the_close_integration():
+    # the closest approach of an impacting orbit's free flights to the walls, from the
+    # corrector's own 256 samples a period (Section.approach) against the orbit integrated
+    # again at rtol 1e-12 with 4096 samples (what a grazing is located on): within 1e-8 of
+    # the motion's length scale (measured 6e-10), far inside the 1e-6 that lets the
+    # continuation skip the close integration
+    import dataclasses
+
+    from absorber_jax._continuation.constants import APPROACH_MARGIN
+    from absorber_jax._continuation.driver import _apex, _orbit_kinematics
+    from absorber_jax._integration.flow import make_config, state_scale
+    from absorber_jax._periodic.orbit import sample_orbit, sampled_approach
+
+    system = rigid(e=0.947)
+    coarse = jax.jit(lambda f, x, cfg: sampled_approach(system, f, sample_orbit(
+        system, f, x, 1, cfg)[0], 1))
+    seen = 0
+    for w in (21.0, 24.0, 30.0, 42.0, 44.0):
+        f = aj.Harmonic(amplitude=F0, omega=w)
+        ss = aj.steady_state(system, f)
+        if int(ss.status) != 0:
+            continue
+        cfg = make_config(system, f)
+        sc = state_scale(system, f)
+        x0 = system.to_internal(ss.state)
+        g = float(coarse(f, x0 / sc, cfg))
+        ts = jnp.linspace(0.0, f.period, 4097)
+        kin, _ = _orbit_kinematics(system, f, x0, ts, dataclasses.replace(cfg, rtol=1e-12,
+                                                                          atol=1e-12))
+        length = float(np.max(np.abs(sc)))
+        exact = _apex(*(np.asarray(k) for k in kin), float(ts[1]), length, length * w)
+        if exact == -length:                # no flight turns before a wall
+            assert g == -np.inf
+            continue
+        seen += 1
+        assert exact < -1e3 * APPROACH_MARGIN * length          # clear of the walls
+        assert abs(g - exact) <= 1e-8 * length, (w, g, exact)
+    assert seen >= 3
+
+
 def test_design_gradient_through_the_impacts_matches_central_differences():
     # a stable orbit with four impacts a period and no sticking
     omega, names = 37.5, ["gap", "e", "m", "k"]
@@ -462,3 +532,43 @@ def test_energy_lost_in_sticking_and_chatter_is_newtons_loss_per_impact():
     # while stuck the ball moves with the wall: samples held against a wall
     u = np.asarray(tr.x2) - np.asarray(tr.x1)
     assert np.mean(np.abs(np.abs(u) - p["gap"]) < 1e-12) > 0.05
+
+
+def test_a_rigid_band_runs_on_two_cpu_devices():
+    # band_continuation of an event-driven system in a process with two CPU devices (its
+    # batched correctors run their lanes one after the other on one device: the event
+    # location's implicit derivative does not trace inside shard_map); its points are the
+    # orbits steady_state finds in this process
+    import json
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent(f"""
+        import json, warnings
+        import absorber_jax as aj
+        assert aj.use_cpu_cores(2) == 2
+        system = aj.ImpactAbsorber(**{SCENE!r}, contact=aj.Restitution(0.947))
+        f = aj.Harmonic(amplitude={F0!r}, omega=42.0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            brs = aj.band_continuation(system, f, "omega", bounds=(42.0, 44.0), starts=2,
+                                       fill=0)
+        print(json.dumps([[b.values.tolist(), b.steady.amplitude.tolist(),
+                           b.steady.status.tolist()] for b in brs]))
+    """)
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    branches = json.loads(out.stdout.strip().splitlines()[-1])
+    assert len(branches) == 4
+    values = np.concatenate([np.asarray(v) for v, _, _ in branches])
+    assert values.min() == pytest.approx(42.0) and values.max() == pytest.approx(44.0)
+    v, amp, status = branches[3]                    # the upper start, up
+    assert all(s == 0 for s in status)
+    for i in (0, len(v) - 1):
+        one = aj.steady_state(rigid(e=0.947), aj.Harmonic(amplitude=F0, omega=v[i]))
+        assert int(one.status) == 0
+        np.testing.assert_allclose(amp[i], float(one.amplitude), rtol=1e-6)

@@ -30,6 +30,13 @@ GRAZING_LOOKBACK = 12
 # samples per period of the orbit whose closest approach to the walls is measured (each
 # apex of its flights then refined by the cubic Hermite interpolant of its interval)
 GRAZING_SAMPLES = 4096
+# a rigid branch creeping towards a grazing impact (driver._crawling): over this many points
+# its largest |multiplier| grows at every point to at least CRAWL_MULTIPLIER while its
+# parameter steps shrink; the grazing is then extrapolated on the fixed sequence of events,
+# no farther than CRAWL_REACH times the last parameter step
+CRAWL_POINTS = 8
+CRAWL_MULTIPLIER = 50.0
+CRAWL_REACH = 50.0
 # ... and that close integration is skipped where the corrector's own samples put every free
 # flight farther than this from the walls (relative to the motion's length scale; their
 # apexes are within ~1e-9 of it: see driver._approach)

@@ -26,6 +26,9 @@ from .constants import (
     CLOSE_RETURN_SKIP,
     CLOSE_RETURNS,
     CORNER_REDUCTION,
+    CRAWL_MULTIPLIER,
+    CRAWL_POINTS,
+    CRAWL_REACH,
     GRAZING_LOOKBACK,
     GRAZING_SAMPLES,
     GRAZING_STEPS,
@@ -38,7 +41,13 @@ from .constants import (
 )
 from .events import _events, _g
 from .problem import _corrector, _defect, _jacobian, _Problem, _scale_at
-from .sequence import event_log, sequence_with, solve_sequence
+from .sequence import (
+    event_log,
+    sequence_of,
+    sequence_with,
+    sequence_without,
+    solve_sequence,
+)
 
 
 class _Driver:
@@ -268,6 +277,7 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     h = method.step
     parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
     rigid = has_rigid_walls(drv.prob.system)
+    checked = 0                 # points up to this one were looked at for a creep
     bar.update(1)
     while termination is None:
         if len(points) >= method.max_points:
@@ -357,6 +367,25 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
         points[-1] = drv.rescale(b)
         if termination is None and len(points) < method.max_points:
             points[-1] = yield from drv.resection(points[-1])
+        if rigid and locate and termination is None and _crawling(points, checked):
+            # creeping towards an impact's grazing: located on the sequence of events held
+            # fixed, and the branch goes on beyond it (or ends there)
+            checked = len(points) - 1
+            e = np.zeros_like(b["z"])
+            e[-1] = float(np.sign(b["z"][-1] - points[-2]["z"][-1])) or 1.0
+            bif, beyond = yield from _graze_impacting(drv, points, e)
+            if bif is not None:
+                bifs.append(bif)
+                if _passed_before(bifs):
+                    termination = "closed"
+                    break
+                if beyond is None:
+                    termination = "grazing"
+                    break
+                points.append(drv.rescale(beyond))
+                bar.update(1)
+                h = method.step
+                continue
         it = int(b["ss"].iterations)
         if it <= 3:
             h = min(1.5 * h, method.max_step)
@@ -734,6 +763,127 @@ def _beyond(drv, bif, best, direction, e):
             c = yield (drv, z, e, True)
             if c["ok"] and _impacts(c) != count and _clear(drv, c):
                 c["t"] = c["t"] * np.sign(c["t"] @ (c["z"] - best["z"]) or 1.0)
+                return bif, c
+    return bif, None
+
+
+def _crawling(points, checked):
+    """Whether the branch creeps towards a grazing impact (an impact whose speed falls to
+    zero): over its last ``CRAWL_POINTS`` points (none of them looked at already: after
+    index ``checked``), all solved, as many impacts each and no hold, the largest
+    ``|multiplier|`` growing at every point to beyond ``CRAWL_MULTIPLIER`` (the saltation of
+    an impact at speed ``w`` grows like ``1/w``) while the parameter moves one way by
+    shrinking steps (Newton's basin shrinks with ``w``: each step takes a fraction of what
+    remains, and the branch would never reach it)."""
+    last = points[-(CRAWL_POINTS + 1):]
+    if len(last) <= CRAWL_POINTS or len(points) - 1 - checked < CRAWL_POINTS:
+        return False
+    if not all(q["ok"] and _impacts(q) == _impacts(last[0]) and _impacts(q) > 0
+               and float(q["ss"].contact_fraction) == 0 for q in last):
+        return False
+    mu = np.array([float(np.max(np.abs(q["mult"]))) for q in last])
+    dp = np.diff([float(q["z"][-1]) for q in last])
+    return bool(np.all(np.diff(mu) > 0) and mu[-1] >= CRAWL_MULTIPLIER
+                and (np.all(dp > 0) or np.all(dp < 0)) and abs(dp[-1]) < abs(dp[0]))
+
+
+def _sequence_at(drv, seq, xi, p):
+    """The orbit of the event sequence ``seq`` held fixed at scaled parameter ``p``, from
+    internal state ``xi`` on the section (and ``seq``'s event times): ``(internal state,
+    event times over the period, switch rates at the events)`` or None where Newton failed
+    (``sequence.solve_sequence``)."""
+    theta, seg, active = seq
+    system, forcing = drv.prob.in_section(jnp.asarray(p))
+    sc = np.asarray(state_scale(system, forcing))
+    n = int(drv.prob.n)
+    u, status, _, rates = solve_sequence(system, forcing, n,
+                                         jnp.asarray(np.concatenate([xi / sc, theta])),
+                                         jnp.asarray(seg), jnp.asarray(active),
+                                         drv.prob.cfg.over_periods(n))
+    if int(status) != Status.SUCCESS:
+        return None
+    u = np.asarray(u)
+    N = sc.shape[0]
+    return u[:N] * sc, u[N:], np.asarray(rates)
+
+
+def _graze_impacting(drv, points, e):
+    """The grazing orbit the branch creeps towards from the impacting side (``_crawling``),
+    and the orbit beyond it.  The sequence of events of the last point's orbit held fixed
+    is smooth through the grazing (``sequence``): the speed of its slowest free-flight
+    impact, solved there and at the point before, is extrapolated to zero by secant steps
+    on the parameter, each a fixed-sequence solve; at the zero the impact grazes.  Beyond
+    it the orbit has that impact no more (its flight turns short of the wall): the sequence
+    without it, solved a fraction ``GRAZING_STEPS`` of the step ahead (then behind: a
+    nonsmooth fold), is corrected by shooting and kept where it has one impact fewer and
+    no flight through a wall.  A generator of corrector requests; returns
+    ``(Bifurcation or None, the point beyond or None)``."""
+    a, b = points[-2], points[-1]
+    pa, pb = float(a["z"][-1]), float(b["z"][-1])
+    system, forcing = drv.prob.in_section(jnp.asarray(pb))
+    n = int(drv.prob.n)
+    period = n * float(forcing.period)
+    sc = np.asarray(state_scale(system, forcing))
+    times, modes, status = event_log(system, forcing, jnp.asarray(b["xi"] / sc),
+                                     jnp.asarray(period), drv.prob.cfg.over_periods(n))
+    seq = sequence_of(times, modes, period) if int(status) == Status.SUCCESS else None
+    if seq is None:
+        return None, None
+    theta, seg, active = seq
+    at_b = _sequence_at(drv, seq, b["xi"], pb)
+    at_a = None if at_b is None else _sequence_at(drv, (at_b[1], seg, active), at_b[0], pa)
+    if at_a is None:
+        return None, None
+    K = int(np.sum(active))
+    free = [j for j in range(K) if np.array_equal(seg[j], seg[j + 1])]
+    if not free:
+        return None, None
+    j = min(free, key=lambda k: at_b[2][k])
+    fa, fb = at_a[2][j], at_b[2][j]
+    if not 0 < fb < fa:
+        return None, None
+    x, th, located = at_b[0], at_b[1], False
+    p_prev, f_prev, p, f = pa, fa, pb, fb
+    reach = CRAWL_REACH * abs(pb - pa)
+    for _ in range(12):
+        p_new = p - f * (p - p_prev) / (f - f_prev)
+        if not abs(p_new - pb) <= reach:
+            return None, None
+        got = _sequence_at(drv, (th, seg, active), x, p_new)
+        if got is None:
+            return None, None
+        p_prev, f_prev, p = p, f, p_new
+        x, th, rates = got
+        f = rates[j]
+        if abs(p - p_prev) <= GRAZING_TOL * max(1.0, abs(p)):
+            located = True
+            break
+    if not located:
+        return None, None
+    # the grazing orbit, shot at its parameter value from the sequence's state
+    z = np.append(x / np.asarray(drv.prob.s0), p)
+    best = yield (drv, z, e, True)
+    if not best["ok"]:
+        best = dict(b, z=z, xi=x)
+    ss = best["ss"]
+    bif = Bifurcation(kind="grazing", value=float(p * drv.prob.pscale),
+                      amplitude=float(ss.amplitude), state=np.asarray(ss.state),
+                      multipliers=np.asarray(ss.multipliers), index=len(points) - 1,
+                      period_multiple=drv.prob.n, located=True, evaluations=1)
+    without = sequence_without(th, seg, active, j)
+    if without is None:
+        return bif, None
+    count = _impacts(b)
+    ahead = float(np.sign(p - pb)) or 1.0
+    for side in (1.0, -1.0):
+        for frac in GRAZING_STEPS:
+            q = p + side * ahead * frac * drv.method.step
+            got = _sequence_at(drv, without, x, q)
+            if got is None or not np.all(got[2][:K - 1] > 0):
+                continue
+            c = yield (drv, np.append(got[0] / np.asarray(drv.prob.s0), q), e, True)
+            if c["ok"] and _impacts(c) == count - 1 and _clear(drv, c):
+                c["t"] = c["t"] * np.sign(c["t"] @ (c["z"] - z) or 1.0)
                 return bif, c
     return bif, None
 

@@ -149,23 +149,48 @@ def solve_sequence(system, forcing, n, u0, modes, active, cfg: Config):
     return u, status, res, rates
 
 
+def _padded(theta, seg, K):
+    """``K`` event times (over the period) and the ``K + 1`` modes of their segments padded
+    to ``SLOTS`` events: ``(theta, modes, active)``."""
+    pad = SLOTS - K
+    theta = np.concatenate([theta, np.ones(pad)])
+    seg = np.concatenate([seg, np.repeat(seg[-1:], pad, axis=0)])
+    return theta, seg, np.arange(SLOTS) < K
+
+
+def sequence_of(times, modes, period):
+    """The event sequence of an orbit (``times``, ``modes`` from ``event_log``) as it is:
+    ``(theta, modes, active)`` padded to ``SLOTS`` events, or ``None`` where it has more."""
+    times, modes = np.asarray(times), np.asarray(modes)
+    K = int(np.isfinite(times).sum())
+    if K > SLOTS:
+        return None
+    return _padded(times[:K] / period, modes[:K + 1], K)
+
+
 def sequence_with(times, modes, t_new, period):
     """The event sequence of an orbit (``times``, ``modes`` from ``event_log``) with one more
     event at ``t_new``, splitting the segment there into two of its mode: ``(theta, modes,
     active)`` padded to ``SLOTS`` events (``theta`` the event times over ``period``), or
     ``None`` where the orbit has more events than that."""
     times, modes = np.asarray(times), np.asarray(modes)
-    real = np.isfinite(times)
-    K = int(real.sum())
+    K = int(np.isfinite(times).sum())
     if K + 1 > SLOTS:
         return None
     t = times[:K]
     j = int(np.searchsorted(t, t_new))
     theta = np.insert(t, j, t_new) / period
     seg = np.insert(modes[:K + 1], j, modes[j], axis=0)
-    pad = SLOTS - (K + 1)
-    theta = np.concatenate([theta, np.ones(pad)])
-    seg = np.concatenate([seg, np.repeat(seg[-1:], pad, axis=0)])
-    active = np.arange(SLOTS) < K + 1
-    return theta, seg, active
+    return _padded(theta, seg, K + 1)
 
+
+def sequence_without(theta, seg, active, j):
+    """The sequence ``(theta, seg, active)`` with its event ``j`` taken out, the segments
+    before and after it merged into one: the orbit beyond a grazing impact, whose flight
+    there turns just short of the wall.  ``None`` unless both segments run in the same mode
+    (an impact in free flight that leaves the absorber free)."""
+    theta, seg = np.asarray(theta), np.asarray(seg)
+    K = int(np.sum(active))
+    if not 0 <= j < K or not np.array_equal(seg[j], seg[j + 1]):
+        return None
+    return _padded(np.delete(theta[:K], j), np.delete(seg[:K + 1], j + 1, axis=0), K - 1)

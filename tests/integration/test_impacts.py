@@ -572,3 +572,38 @@ def test_a_rigid_band_runs_on_two_cpu_devices():
         one = aj.steady_state(rigid(e=0.947), aj.Harmonic(amplitude=F0, omega=v[i]))
         assert int(one.status) == 0
         np.testing.assert_allclose(amp[i], float(one.amplitude), rtol=1e-6)
+
+
+def test_a_branch_creeping_to_an_impacts_grazing_locates_it_and_goes_on():
+    # the hard rigid scene from 29.36 rad/s down: orbits with 15 impacts, the slowest of
+    # which slows to zero speed at a grazing (its saltation, ~1/speed, grows without bound
+    # and Newton's basin shrinks with it: the branch would creep towards it for hundreds of
+    # points).  The grazing is extrapolated on the fixed sequence of events; beyond it the
+    # orbits have 14 impacts (the flight turns short of the wall), back up (a nonsmooth fold)
+    e = aj.restitution_of(aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True),
+                          SCENE["m"], SCENE["M"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        down, _ = aj.band_continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=29.36),
+                                       "omega", bounds=(29.0, 29.45), starts=[29.36], fill=0)
+    (graze,) = down.of_kind("grazing")
+    impacts, v = np.asarray(down.steady.impacts), np.asarray(down.values)
+    assert graze.located and 29.1 < graze.value < 29.2
+    assert impacts[graze.index] == 15.0 and impacts[graze.index + 1] == 14.0
+    assert down.termination == "bounds" and len(v) < 100
+    # the event-exact reference from the located orbit: periodic (an unstable orbit,
+    # |mu| in the thousands, its rounding grown over the period), and its highest flight
+    # reaches the wall
+    W = float(graze.value)
+    T = 2 * np.pi / W
+    scale = np.array([1.0, W, 1.0, W]) * SCENE["gap"]
+    y, events = reference(W, e).run(np.asarray(graze.state), 0.0, T, np.linspace(0, T, 40_001))
+    assert np.max(np.abs(y[-1] - y[0]) / scale) < 1e-5
+    assert abs(np.max(np.abs(y[:, 2] - y[:, 0])) / SCENE["gap"] - 1) < 1e-7
+    assert sum(k == "impact" for _, k in events) in (14, 15)
+    # beyond: periodic with 14 impacts
+    j = graze.index + 1
+    Wj = float(v[j])
+    y, events = reference(Wj, e).run(np.asarray(down.states[j]), 0.0, 2 * np.pi / Wj)
+    assert np.max(np.abs(y[-1] - np.asarray(down.states[j])) / scale) < 1e-5
+    assert sum(k == "impact" for _, k in events) == 14

@@ -152,6 +152,7 @@ def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
     the 240 periods), so its closest returns lie near the orbit: each seed's state is the
     exact piecewise-linear orbit's state at t = 0 to 1e-3 of the orbit's size, and the
     corrector from a seed converges to it (1e-6)."""
+    from absorber_jax._continuation.constants import CLOSE_RETURNS
     from absorber_jax._continuation.driver import (
         _axis,
         _close_returns,
@@ -173,7 +174,7 @@ def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
     drv = _Driver(prob, method, (w, w))
     z0 = np.append(np.asarray(sysm.linear_guess(f)) / np.asarray(prob.s0), 1.0)
     (seeds,) = _close_returns([drv], [z0])
-    assert len(seeds) == 3
+    assert len(seeds) == CLOSE_RETURNS
     ex = rj.periodic_orbit(w, **HARD)
     assert ex["converged"]
     x_ex = np.asarray(sysm.to_internal(np.asarray(ex["x"]))) / np.asarray(prob.s0)

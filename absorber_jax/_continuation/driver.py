@@ -317,12 +317,8 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             # step, which event location does not see): not an orbit; the grazing between
             # a and b, then on from the orbit with the impact born there
             bif, beyond = yield from _through(drv, a, b, len(points) - 1)
-            bifs.append(bif)
-            if _passed_before(bifs):
-                termination = "closed"
-                break
-            if beyond is None:
-                termination = "grazing"
+            termination = _past_grazing(bifs, bif, beyond)
+            if termination is not None:
                 break
             points.append(drv.rescale(beyond))
             bar.update(1)
@@ -375,12 +371,8 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             e[-1] = float(np.sign(b["z"][-1] - points[-2]["z"][-1])) or 1.0
             bif, beyond = yield from _graze_impacting(drv, points, e)
             if bif is not None:
-                bifs.append(bif)
-                if _passed_before(bifs):
-                    termination = "closed"
-                    break
-                if beyond is None:
-                    termination = "grazing"
+                termination = _past_grazing(bifs, bif, beyond)
+                if termination is not None:
                     break
                 points.append(drv.rescale(beyond))
                 bar.update(1)
@@ -394,14 +386,21 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     return points, bifs, termination
 
 
+def _past_grazing(bifs, bif, beyond):
+    """Record the grazing ``bif`` the branch has passed; its termination there (``"closed"``:
+    a loop retraced, ``"grazing"``: no orbit ``beyond``), or None where it goes on."""
+    bifs.append(bif)
+    if _passed_before(bifs):
+        return "closed"
+    return "grazing" if beyond is None else None
+
+
 def _passed_before(bifs):
     """Whether the branch has gone round a closed loop: its last two located grazings are
     two it passed already, one after the other (each the same orbit: its parameter value
     within ``LOOP_TOL`` relative, its state within ``LOOP_TOL`` of its size).  A grazing
-    where sheets of impacting orbits meet may be passed again along another sheet (on the
-    hard rigid scene of scripts/benchmark_rigid_impacts.py the branch passes 27.204 rad/s
-    three times, between grazings at 27.16, 27.76-27.78 and 27.92 rad/s); the same two in
-    a row mean the branch retraces itself."""
+    where sheets of impacting orbits meet may be passed again along another sheet; the same
+    two in a row mean the branch retraces itself."""
     graz = [b for b in bifs if not isinstance(b, tuple) and b.kind == "grazing" and b.located]
     if len(graz) < 4 or graz[-1] is not bifs[-1]:
         return False

@@ -113,10 +113,11 @@ def on_devices(solve, jobs, ndev, progress=None):
 
 
 def by_parts(rows, size, solve, ndev, progress=False):
-    """``solve(padded rows, device)`` on the rows of ``rows`` (point indices, one row per
-    lane), ``size // ndev`` rows at a time on each of ``ndev`` devices (``size`` a multiple
-    of ``ndev``), the last part padded by repeating its last row (one compilation serves
-    all); the results of the real rows, concatenated.  The devices work through the parts in
+    """``solve(padded rows, live, device)`` on the rows of ``rows`` (point indices, one row
+    per lane), ``size // ndev`` rows at a time on each of ``ndev`` devices (``size`` a
+    multiple of ``ndev``), the last part padded by repeating its last row (one compilation
+    serves all; ``live``, a boolean per row, False on the padding: see ``over_lanes``); the
+    results of the real rows, concatenated.  The devices work through the parts in
     turn, each taking the next as soon as it is done (``on_devices``); ``progress``: a
     bar over the points (``PointProgress``)."""
     part = size // ndev
@@ -124,12 +125,14 @@ def by_parts(rows, size, solve, ndev, progress=False):
     for start in range(0, rows.shape[0], part):
         idx = rows[start:start + part]
         keep.append(idx.shape[0])
+        live = np.arange(part) < idx.shape[0]
         if idx.shape[0] < part:
             idx = np.concatenate([idx, np.repeat(idx[-1:], part - idx.shape[0], axis=0)])
-        jobs.append(idx)
+        jobs.append((idx, live))
     points = [int(np.size(rows[start:start + part])) for start in range(0, rows.shape[0], part)]
     with PointProgress(sum(points), "sweep", bool(progress)) as bar:
-        res = on_devices(solve, jobs, ndev, progress=lambda i: bar.update(points[i]))
+        res = on_devices(lambda job, d: solve(*job, d), jobs, ndev,
+                         progress=lambda i: bar.update(points[i]))
     return jax.tree_util.tree_map(lambda *a: np.concatenate(
         [np.asarray(x)[:k] for x, k in zip(a, keep)]), *res)
 

@@ -172,7 +172,8 @@ def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, n
         pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
         out = retry_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
                            jnp.asarray(amplitude, dtype=float),
-                           jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, method, names, False)
+                           jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, method, names, False,
+                           jnp.asarray(np.arange(RETRY_BATCH) < idx.size))
         st, pub = np.asarray(out.status)[:idx.size], np.asarray(out.state)[:idx.size]
         for j, i in enumerate(idx):
             if st[j] == Status.SUCCESS:

@@ -122,20 +122,27 @@ SMALL_CHUNK = 2 * RETRY_BATCH
 
 
 @eqx.filter_jit
-def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, method, names, with_floquet):
+def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, method, names, with_floquet,
+                  live):
     def point(w, pv, g):
         return _one_point(_with(system, names, pv), w, amplitude, g, cfg, method, with_floquet)
 
-    return over_lanes(point, is_hybrid(system))(omegas, pvals, guesses)
+    return over_lanes(point, is_hybrid(system), masked=True)(live, omegas, pvals, guesses)
 
 
 @eqx.filter_jit
-def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
+def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet,
+                live=None):
+    """March then shoot at each lane's frequency ``omegas`` and parameter values ``pvals``;
+    ``live``: False for the lanes that pad a batch (skipped where the lanes run one after
+    the other: ``over_lanes``)."""
     def point(w, pv):
         return march_then_shoot(_with(system, names, pv), _forcing(amplitude, w), cfg, method,
                                 with_floquet=with_floquet)
 
-    return over_lanes(point, is_hybrid(system))(omegas, pvals)
+    if live is None:
+        return over_lanes(point, is_hybrid(system))(omegas, pvals)
+    return over_lanes(point, is_hybrid(system), masked=True)(live, omegas, pvals)
 
 
 def _retry_batch(system):
@@ -147,9 +154,9 @@ def _retry_batch(system):
 
 
 def _in_batches(res, bad, solve, desc, progress, size):
-    """Apply ``solve(padded indices)`` to the points ``bad`` of a flat (point-axis) result in
-    fixed batches of ``size`` (one compilation) and write the results back; the iteration
-    counts add up."""
+    """Apply ``solve(padded indices, live)`` to the points ``bad`` of a flat (point-axis)
+    result in fixed batches of ``size`` (one compilation; ``live`` False on the padding)
+    and write the results back; the iteration counts add up."""
     if bad.size == 0:
         return res
     with PointProgress(bad.size, desc, bool(progress)) as bar:
@@ -157,7 +164,8 @@ def _in_batches(res, bad, solve, desc, progress, size):
             idx = bad[start:start + size]
             pad = np.concatenate([idx, np.repeat(idx[-1:], size - idx.size)])
             k = idx.size
-            out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad))
+            live = jnp.asarray(np.arange(size) < k)
+            out = jax.tree_util.tree_map(lambda a, k=k: np.asarray(a)[:k], solve(pad, live))
             out = eqx.tree_at(lambda r: r.iterations, out, out.iterations + res.iterations[idx])
 
             def write(dst, src, idx=idx):
@@ -183,14 +191,14 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
             return jnp.asarray(np.stack([np.asarray(
                 _with(system, names, PV[i]).to_internal(res.state[i])) for i in p]))
 
-        res = _in_batches(res, slow, lambda p: _resume_chunk(
+        res = _in_batches(res, slow, lambda p, live: _resume_chunk(
             system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), guesses(p), cfg, rest, names,
-            with_floquet), "resume", progress, _retry_batch(system))
+            with_floquet, live), "resume", progress, _retry_batch(system))
     if method.retry:
         bad = np.flatnonzero(res.status != Status.SUCCESS)
-        res = _in_batches(res, bad, lambda p: retry_chunk(
+        res = _in_batches(res, bad, lambda p, live: retry_chunk(
             system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
-            with_floquet), "retry", progress, _retry_batch(system))
+            with_floquet, live), "retry", progress, _retry_batch(system))
     return res
 
 
@@ -199,14 +207,14 @@ def _with(system, names, values):
 
 
 @eqx.filter_jit
-def _parallel_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet):
+def _parallel_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet, live):
     nan = jnp.full((system.num_states,), jnp.nan)
 
     def point(w, pv):
         return _one_point(_with(system, names, pv), w, amplitude, nan, cfg, method,
                           with_floquet)
 
-    return over_lanes(point, is_hybrid(system))(omegas, pvals)
+    return over_lanes(point, is_hybrid(system), masked=True)(live, omegas, pvals)
 
 
 # points one lane of a chained sweep solves in a row (see _chained_sweep)
@@ -286,8 +294,9 @@ def _one_lane_at_a_time(system):
 def _parallel_sweep(system, W, PV, amp, cfg, first, names, floquet, size, ndev, progress):
     """The points ``(W, PV)`` solved independently, ``size`` per compiled call; the flat
     results."""
-    return by_parts(np.arange(W.shape[0]), size, lambda p, d: _parallel_chunk(
-        system, put(W[p], d), amp, put(PV[p], d), cfg, first, names, floquet), ndev, progress)
+    return by_parts(np.arange(W.shape[0]), size, lambda p, live, d: _parallel_chunk(
+        system, put(W[p], d), amp, put(PV[p], d), cfg, first, names, floquet, put(live, d)),
+                    ndev, progress)
 
 
 def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, ndev, progress,
@@ -307,7 +316,7 @@ def _chained_sweep(system, W, PV, amp, cfg, first, names, floquet, chunk_size, n
                                        + np.arange(k)[None, :], a + per_design - 1)
                             for a in range(0, total, per_design)])      # (L, k) points
     size = ndev if alone else int(math.ceil(min(chunk_size, lanes.shape[0]) / ndev) * ndev)
-    res = by_parts(lanes, size, lambda p, d: _chained_chunk(
+    res = by_parts(lanes, size, lambda p, live, d: _chained_chunk(
         system, put(W[p], d), amp, put(PV[p[:, 0]], d), cfg, first, names, floquet), ndev,
                    progress)
     # back to one result per point (a lane padded by repeating its last point wrote it twice)
@@ -520,9 +529,9 @@ def _run_sequential(system, om, pvals, names, amp, cfg, method, floquet, directi
         W = np.broadcast_to(om[None, :], (P, len(om))).reshape(-1)
         PV = np.repeat(pvals, len(om), axis=0)
         bad = np.flatnonzero(flat.status != Status.SUCCESS)
-        flat = _in_batches(flat, bad, lambda p: retry_chunk(
+        flat = _in_batches(flat, bad, lambda p, live: retry_chunk(
             system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
-            floquet), "retry", progress, _retry_batch(system))
+            floquet, live), "retry", progress, _retry_batch(system))
         res = jax.tree_util.tree_map(lambda a: a.reshape((P, len(om)) + a.shape[1:]), flat)
     return res
 

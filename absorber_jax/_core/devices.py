@@ -18,6 +18,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.extend.core import jaxpr_as_fun
 from jax.sharding import Mesh, PartitionSpec
 
 from .progress import PointProgress
@@ -157,17 +158,20 @@ def over_lanes(fn, serial, masked=False):
         return lambda *args: jax.lax.map(lambda a: fn(*a), args)
 
     def run(live, *args):
-        # the outputs' shapes, for the zeros of a skipped lane, from the first lane traced
-        # as the lanes are (inside a map: equinox caches closure conversions by shape, and
-        # their arguments' sharding differs inside and outside the map in ``shard_map``)
-        shapes = jax.eval_shape(lambda: jax.lax.map(lambda a: fn(*a),
-                                                    tuple(a[:1] for a in args)))
-        shapes = jax.tree_util.tree_map(lambda s: jax.ShapeDtypeStruct(s.shape[1:], s.dtype),
-                                        shapes)
+        # ``fn`` traced once, on one lane's shapes; each live lane evaluates that program,
+        # a skipped one gives zeros of its output shapes (tracing it again for the shapes
+        # alone cost the rigid building sweep's first call 22 s more)
+        lane_args = jax.tree_util.tree_map(lambda a: jax.ShapeDtypeStruct(a.shape[1:], a.dtype),
+                                           args)
+        program, shapes = jax.make_jaxpr(fn, return_shape=True)(*lane_args)
+        run_program = jaxpr_as_fun(program)
+        out_tree = jax.tree_util.tree_structure(shapes)
 
         def lane(a):
-            return jax.lax.cond(a[0], lambda: fn(*a[1:]), lambda: jax.tree_util.tree_map(
-                lambda s: jnp.zeros(s.shape, s.dtype), shapes))
+            outs = jax.lax.cond(
+                a[0], lambda: run_program(*jax.tree_util.tree_leaves(a[1:])),
+                lambda: [jnp.zeros(v.shape, v.dtype) for v in program.out_avals])
+            return jax.tree_util.tree_unflatten(out_tree, outs)
 
         return jax.lax.map(lane, (live,) + args)
 

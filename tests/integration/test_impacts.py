@@ -468,6 +468,20 @@ def test_continuation_moves_its_section_off_an_impact_and_follows_the_branch_on(
         assert bool(br.stable[j]) == bool(mu_ref < 1.0)
         np.testing.assert_allclose(np.max(np.abs(np.asarray(br.multipliers[j]))), mu_ref,
                                    rtol=1e-4)
+    # the period doubling where the branch turns unstable again: located (two complex pairs
+    # meet on the negative real axis first, and one of the real multipliers they part into
+    # crosses -1), the orbits 0.005 rad/s either side of it stable and unstable with a real
+    # multiplier either side of -1
+    (pd,) = br.of_kind("period_doubling")
+    assert pd.located and 21.4 < pd.value < 21.7
+    guess = np.asarray(br.states[pd.index])
+    for dw, stable_side in ((-0.005, True), (0.005, False)):
+        ss = aj.steady_state(rigid(e), aj.Harmonic(amplitude=F0, omega=pd.value + dw),
+                             guess=guess)
+        mult = np.asarray(ss.multipliers)
+        real = mult[np.abs(mult.imag) < 1e-9].real
+        assert int(ss.status) == 0 and bool(ss.stable) == stable_side
+        assert (real.min() > -1.0) == stable_side and abs(real.min() + 1.0) < 0.1
 
 
 @pytest.mark.slow

@@ -225,11 +225,7 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     k = len(drivers)
     size = max(k, lanes or k)
     parts = 1 if is_hybrid(prob.system) else device_parts(size)
-    at = _placed(k, size, parts)
-    slot = np.zeros(size, dtype=int)                # padding: the first march again
-    slot[at] = np.arange(k)
-    live = np.zeros(size, dtype=bool)
-    live[at] = True
+    at, slot, live = _placed(k, size, parts)
     s0 = np.stack([np.asarray(d.prob.s0) for d in drivers])
     z = np.stack(z0s)
     with one_blas_thread(parts):
@@ -440,11 +436,18 @@ def _corrector_many(prob, s0, section, z_pred, t_prev, patient, live, tol, newto
 
 
 def _placed(count, size, ndev):
-    """The lanes of a batch of ``size`` (split into ``ndev`` equal parts, one per device)
-    that hold its ``count`` requests: dealt to the devices in turn, so that each gets its
-    share where the lanes run one after the other."""
+    """Where a batch of ``size`` lanes (split into ``ndev`` equal parts, one per device)
+    holds its ``count`` requests: dealt to the devices in turn, so that each gets its share
+    where the lanes run one after the other.  Returns ``(at, slot, live)``: the lane of each
+    request, the request each lane holds (the padding: the first again) and whether a lane
+    is a real one."""
     part = size // ndev
-    return np.array([(j % ndev) * part + j // ndev for j in range(count)], dtype=int)
+    at = np.array([(j % ndev) * part + j // ndev for j in range(count)], dtype=int)
+    slot = np.zeros(size, dtype=int)
+    slot[at] = np.arange(count)
+    live = np.zeros(size, dtype=bool)
+    live[at] = True
+    return at, slot, live
 
 
 def _run_batched(gens, prob, method, lanes=None):
@@ -487,12 +490,8 @@ def _run_batched(gens, prob, method, lanes=None):
         idx = list(pending)[:sizes[0]]          # more requests than lanes: the first ones
         size = min(z for z in sizes if z >= len(idx))
         parts = 1 if serial else device_parts(size)
-        at = _placed(len(idx), size, parts)
-        slot = np.zeros(size, dtype=int)           # padding: the first request again
-        slot[at] = np.arange(len(idx))
+        at, slot, live = _placed(len(idx), size, parts)
         reqs = [pending[idx[k]] for k in slot]
-        live = np.zeros(size, dtype=bool)
-        live[at] = True
         s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
         sec = np.stack([np.asarray(r[0].prob.section) for r in reqs])
         zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
@@ -786,6 +785,19 @@ def _crawling(points, checked):
                 and (np.all(dp > 0) or np.all(dp < 0)) and abs(dp[-1]) < abs(dp[0]))
 
 
+def _events_of(drv, point):
+    """The event log of branch point ``point``'s orbit over its response period from its
+    state on the section (``sequence.event_log``): ``(times, modes, period [s])``, or None
+    where that integration failed."""
+    system, forcing = drv.prob.in_section(jnp.asarray(point["z"][-1]))
+    n = int(drv.prob.n)
+    period = n * float(forcing.period)
+    sc = np.asarray(state_scale(system, forcing))
+    times, modes, status = event_log(system, forcing, jnp.asarray(point["xi"] / sc),
+                                     jnp.asarray(period), drv.prob.cfg.over_periods(n))
+    return None if int(status) != Status.SUCCESS else (times, modes, period)
+
+
 def _sequence_at(drv, seq, xi, p):
     """The orbit of the event sequence ``seq`` held fixed at scaled parameter ``p``, from
     internal state ``xi`` on the section (and ``seq``'s event times): ``(internal state,
@@ -819,16 +831,11 @@ def _graze_impacting(drv, points, e):
     ``(Bifurcation or None, the point beyond or None)``."""
     a, b = points[-2], points[-1]
     pa, pb = float(a["z"][-1]), float(b["z"][-1])
-    system, forcing = drv.prob.in_section(jnp.asarray(pb))
-    n = int(drv.prob.n)
-    period = n * float(forcing.period)
-    sc = np.asarray(state_scale(system, forcing))
-    times, modes, status = event_log(system, forcing, jnp.asarray(b["xi"] / sc),
-                                     jnp.asarray(period), drv.prob.cfg.over_periods(n))
-    seq = sequence_of(times, modes, period) if int(status) == Status.SUCCESS else None
+    logged = _events_of(drv, b)
+    seq = None if logged is None else sequence_of(*logged)
     if seq is None:
         return None, None
-    theta, seg, active = seq
+    _, seg, active = seq
     at_b = _sequence_at(drv, seq, b["xi"], pb)
     at_a = None if at_b is None else _sequence_at(drv, (at_b[1], seg, active), at_b[0], pa)
     if at_a is None:
@@ -904,38 +911,22 @@ def _onto_born(drv, best, direction, e):
     corrected by shooting from that orbit's state on the section, and kept where it has the
     new impact and no flight through a wall.  A generator of corrector requests; returns
     the point (its tangent leading away from the grazing orbit) or None."""
-    prob = drv.prob
     p_g = float(best["z"][-1])
-    system, forcing = prob.in_section(jnp.asarray(p_g))
-    n = int(prob.n)
-    period = n * float(forcing.period)
-    sc = np.asarray(state_scale(system, forcing))
-    cfg = prob.cfg.over_periods(n)
-    times, modes, status = event_log(system, forcing, jnp.asarray(best["xi"] / sc),
-                                     jnp.asarray(period), cfg)
+    logged = _events_of(drv, best)
     t_new = _grazing_time(drv, best)
-    if int(status) != Status.SUCCESS or t_new is None:
+    if logged is None or t_new is None:
         return None
-    seq = sequence_with(times, modes, t_new, period)
+    seq = sequence_with(*logged[:2], t_new, logged[2])
     if seq is None:
         return None
-    theta, seg, active = seq
-    count, N = _impacts(best), sc.shape[0]
+    count = _impacts(best)
     for side in (1.0, -1.0):
         for frac in GRAZING_STEPS:
             p = p_g + side * direction * frac * drv.method.step
-            sys_p, forc_p = prob.in_section(jnp.asarray(p))
-            sc_p = np.asarray(state_scale(sys_p, forc_p))
-            u, status, _, rates = solve_sequence(sys_p, forc_p, n,
-                                                 jnp.asarray(np.concatenate([best["xi"] / sc_p,
-                                                                             theta])),
-                                                 jnp.asarray(seg), jnp.asarray(active), cfg)
-            if int(status) != Status.SUCCESS:
-                continue
-            if not np.all(np.asarray(rates)[active] > 0):
+            got = _sequence_at(drv, seq, best["xi"], p)
+            if got is None or not np.all(got[2][seq[2]] > 0):
                 continue            # the new impact would be reached from beyond its wall
-            x = np.asarray(u)[:N] * sc_p
-            c = yield (drv, np.append(x / np.asarray(prob.s0), p), e, True)
+            c = yield (drv, np.append(got[0] / np.asarray(drv.prob.s0), p), e, True)
             if c["ok"] and _impacts(c) == count + 1 and _clear(drv, c):
                 c["t"] = c["t"] * np.sign(c["t"] @ (c["z"] - best["z"]) or 1.0)
                 return c

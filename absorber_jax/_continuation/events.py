@@ -7,14 +7,12 @@ import numpy as np
 
 def _pd_test(mult):
     """Product of ``(μ_i + 1)`` (real; changes sign when a real multiplier crosses -1, a
-    complex pair contributing ``|μ + 1|² > 0``) and its sign.  The product itself is the
-    located quantity: continuous where two complex multipliers meet on the negative real
-    axis and part as two real ones, one of which then crosses -1 (the real multiplier
-    nearest -1 does not exist on the complex side: on the hard rigid scene's 5-impact
-    branch two complex pairs meet near 21.5 rad/s and the period doubling follows at
-    21.567 rad/s)."""
-    prod = float(np.prod(mult + 1.0).real)
-    return np.sign(prod), prod
+    complex pair contributing ``|μ + 1|² > 0``), also the located quantity: continuous
+    where two complex multipliers meet on the negative real axis and part as two real ones,
+    one of which then crosses -1 (the real multiplier nearest -1 does not exist on the
+    complex side: on the hard rigid scene's 5-impact branch two complex pairs meet near
+    21.5 rad/s and the period doubling follows at 21.567 rad/s)."""
+    return float(np.prod(mult + 1.0).real)
 
 
 def _complex_upper(mult):
@@ -36,7 +34,7 @@ def _events(a, b):
     kinds = []
     if np.sign(a["t"][-1]) * np.sign(b["t"][-1]) < 0:
         kinds.append("fold")
-    if _pd_test(a["mult"])[0] * _pd_test(b["mult"])[0] < 0:
+    if np.sign(_pd_test(a["mult"])) * np.sign(_pd_test(b["mult"])) < 0:
         kinds.append("period_doubling")
     ca, oa, _ = _ns_test(a["mult"])
     cb, ob, _ = _ns_test(b["mult"])
@@ -49,5 +47,5 @@ def _g(kind, point):
     if kind == "fold":
         return float(point["t"][-1])
     if kind == "period_doubling":
-        return float(_pd_test(point["mult"])[1])
+        return _pd_test(point["mult"])
     return float(_ns_test(point["mult"])[2])

@@ -131,8 +131,7 @@ def _resume_chunk(system, omegas, amplitude, pvals, guesses, cfg, method, names,
 
 
 @eqx.filter_jit
-def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet,
-                live=None):
+def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floquet, live):
     """March then shoot at each lane's frequency ``omegas`` and parameter values ``pvals``;
     ``live``: False for the lanes that pad a batch (skipped where the lanes run one after
     the other: ``over_lanes``)."""
@@ -140,8 +139,6 @@ def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floqu
         return march_then_shoot(_with(system, names, pv), _forcing(amplitude, w), cfg, method,
                                 with_floquet=with_floquet)
 
-    if live is None:
-        return over_lanes(point, is_hybrid(system))(omegas, pvals)
     return over_lanes(point, is_hybrid(system), masked=True)(live, omegas, pvals)
 
 

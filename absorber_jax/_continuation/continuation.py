@@ -182,6 +182,15 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                 first = dict(ss=jax.tree_util.tree_map(np.asarray, ss), ok=False)
             else:
                 first = drv.solve(np.append(x0, p0), e, True)
+            if not first["ok"]:
+                # as band_continuation's starts: Newton from the closest returns of a
+                # marched trajectory (a chaotic motion passes near the unstable orbits)
+                z_guess = np.append(np.asarray(g) / np.asarray(s0), p0)
+                for z0 in _close_returns([drv], [z_guess])[0]:
+                    point = drv.solve(z0, e, True)
+                    if point["ok"]:
+                        first = point
+                        break
         rejoin = None
     else:
         first, rejoin = _switch(drv, system, forcing, start, s0, p0, cfg, parameter, pscale)

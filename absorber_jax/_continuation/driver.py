@@ -17,7 +17,7 @@ from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
 from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
 from .._integration.flow import event_counts, integrate_flow, make_config, state_scale
-from .._periodic.orbit import free_flight_apexes, has_rigid_walls, wall_kinematics
+from .._periodic.orbit import finish_orbit, free_flight_apexes, has_rigid_walls, wall_kinematics
 from .._systems.base import is_hybrid
 from .branch import Bifurcation, Branch
 from .constants import (
@@ -818,6 +818,19 @@ def _sequence_at(drv, seq, xi, p):
     return u[:N] * sc, u[N:], np.asarray(rates)
 
 
+@eqx.filter_jit
+def _orbit_of(prob, xi, p):
+    """The ``SteadyState`` of the orbit through internal state ``xi`` on ``prob``'s section
+    at scaled parameter ``p``, taken as periodic (a fixed-sequence solution), its
+    multipliers from the flow's Jacobian."""
+    system, forcing = prob.in_section(p)
+    sc = state_scale(system, forcing)
+    ss, _ = finish_orbit(system, forcing, xi / sc, prob.n, prob.cfg,
+                         jnp.asarray(Status.SUCCESS), jnp.zeros(()), jnp.zeros((), int),
+                         n_cap=prob.n, section=prob.section)
+    return ss
+
+
 def _graze_impacting(drv, points, e):
     """The grazing orbit the branch creeps towards from the impacting side (``_crawling``),
     and the orbit beyond it.  The sequence of events of the last point's orbit held fixed
@@ -866,12 +879,15 @@ def _graze_impacting(drv, points, e):
             break
     if not located:
         return None, None
-    # the grazing orbit, shot at its parameter value from the sequence's state
+    # the grazing orbit, shot at its parameter value from the sequence's state; where
+    # shooting fails there (the impact at zero speed: the period map is not smooth at
+    # its own solution), the fixed-sequence orbit itself, its multipliers those of the
+    # impacting side
     z = np.append(x / np.asarray(drv.prob.s0), p)
     best = yield (drv, z, e, True)
-    if not best["ok"]:
-        best = dict(b, z=z, xi=x)
-    ss = best["ss"]
+    ss = (best["ss"] if best["ok"]
+          else jax.tree_util.tree_map(np.asarray, _orbit_of(drv.prob, jnp.asarray(x),
+                                                            jnp.asarray(p))))
     bif = Bifurcation(kind="grazing", value=float(p * drv.prob.pscale),
                       amplitude=float(ss.amplitude), state=np.asarray(ss.state),
                       multipliers=np.asarray(ss.multipliers), index=len(points) - 1,

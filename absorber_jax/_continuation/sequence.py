@@ -39,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.status import Status
+from .._integration.flights import in_closed_form
 from .._integration.flow import Config, state_scale
 from .._integration.stickslip import hybrid_solve
 
@@ -61,7 +62,8 @@ def event_log(system, forcing, x, t1, cfg: Config):
     _, _, status, _, _, _, (times, modes) = hybrid_solve(
         system, forcing, x, 0.0, t1, None, solver=cfg.solver, rtol=FLOW_TOL, atol=FLOW_TOL,
         max_steps=cfg.max_steps, scale=state_scale(system, forcing),
-        max_segments=SLOTS + 1, log=True)
+        max_segments=SLOTS + 1, log=True,
+        closed_form=cfg.closed_form and in_closed_form(system, forcing))
     return times, modes, status
 
 

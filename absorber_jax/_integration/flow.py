@@ -25,6 +25,7 @@ import optimistix as optx
 from .._core.checks import is_traced
 from .._core.status import Status, from_diffrax
 from .._systems.base import is_hybrid
+from .flights import in_closed_form
 from .simulate import _resolve_solver
 from .stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
 from .unrolled import unrolled
@@ -58,6 +59,9 @@ class Config(eqx.Module):
     # rtol and atol multiplied by these (floats, or traced scalars: one compiled
     # integration run at two tolerances, see _periodic.orbit.floquet_matrix)
     tol_factors: tuple = (1.0, 1.0)
+    # hybrid systems with affine modes under a forcing with exact harmonics: flights in
+    # closed form (_integration.flights), unless a solver was named
+    closed_form: bool = eqx.field(static=True, default=True)
 
     def over_periods(self, n: int) -> Config:
         """The configuration of one integration over ``n`` forcing periods."""
@@ -86,6 +90,14 @@ def _scaled_rate(dyn, t, x):
     system, forcing = dyn
     scale = state_scale(system, forcing)
     return system.vector_field(t, x * scale, forcing) / scale
+
+
+def _mode_rate(dyn, t, x):
+    """The rate of hybrid ``dyn`` at scaled state ``x`` and time ``t`` in the mode there."""
+    system, forcing = dyn
+    scale = state_scale(system, forcing)
+    mode = system.mode_of(t, x * scale, forcing)
+    return system.mode_rate(t, x * scale, forcing, mode) / scale
 
 
 def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
@@ -180,7 +192,8 @@ def _hybrid(dyn, x0, t0, t1, ts, cfg):
     return hybrid_solve(system, forcing, x0, t0, t1, ts, solver=cfg.solver,
                         rtol=cfg.rtol * cfg.tol_factors[0], atol=cfg.atol * cfg.tol_factors[1],
                         max_steps=cfg.max_steps, scale=state_scale(system, forcing),
-                        max_segments=max_segments(cfg))
+                        max_segments=max_segments(cfg),
+                        closed_form=cfg.closed_form and in_closed_form(system, forcing))
 
 
 def flat_inputs(primals, tangents):
@@ -228,10 +241,11 @@ def _flow_jvp(primals, tangents, *, cfg):
     # directions of the Jacobian: sampling an orbit at 256 times whose tangent is the
     # period's would carry 256 more tangents through the solve (measured: the 22-point grid
     # pass of exact_peak on a TMD takes 0.15 s this way, 1.23 s with them).  Hybrid (exact
-    # stick–slip) systems: every input through the event times and the segments' steps, the times
-    # included (the rate at a save time is the mode's there).
+    # stick–slip, rigid impacts) systems: the system, forcing, initial state and final time
+    # through the event times and the segments' steps; the save times (256 of them a
+    # period, each a direction of the Jacobian otherwise) add the rate of the mode there.
     hybrid = is_hybrid(dyn[0])
-    k = 4 if hybrid else 2
+    k = 3 if hybrid else 2
     if any(t is not None for t in jax.tree_util.tree_leaves(tangents[:k], is_leaf=is_none)):
         active, t_vec = _active_tangents(tangents[:k])
         if _by_sensitivities(dyn, cfg):
@@ -271,10 +285,14 @@ def _flow_jvp(primals, tangents, *, cfg):
     else:
         ys, status = integrate(dyn, x0, 0.0, t1, ts, cfg)
         dys = jnp.zeros_like(ys)
-    dt = None if hybrid else (tangents[2] if ts is None else tangents[3])
+    if hybrid:
+        dt = None if ts is None else tangents[3]
+    else:
+        dt = tangents[2] if ts is None else tangents[3]
     if dt is not None:
         t_save = jnp.asarray(t1)[None] if ts is None else ts
-        f = jax.vmap(lambda t, x: _scaled_rate(dyn, t, x))(t_save, ys)
+        rate = _mode_rate if hybrid else _scaled_rate
+        f = jax.vmap(lambda t, x: rate(dyn, t, x))(t_save, ys)
         dys = dys + jnp.where(jnp.isfinite(f), f, 0.0) * jnp.reshape(dt, (-1, 1))
     return (ys, status), (dys, None)
 
@@ -460,4 +478,5 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
     stiffish = (not is_traced(lam) and not is_traced(period)
                 and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
     return Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
-                   tangent_control=bool(explicit and stiffish and not is_hybrid(system)))
+                   tangent_control=bool(explicit and stiffish and not is_hybrid(system)),
+                   closed_form=solver is None or (isinstance(solver, str) and solver == "auto"))

@@ -19,6 +19,7 @@ from .._core.tables import dataframe, trajectory_columns, trajectory_dataset, wr
 from .._systems.base import AbstractSystem, is_hybrid
 from .._systems.forcing import AbstractForcing
 from .._systems.scales import warn_scales
+from .flights import in_closed_form
 from .settings import integrator_from
 from .stickslip import hybrid_solve
 
@@ -252,14 +253,15 @@ class Trajectory(eqx.Module):
 
 
 def _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw,
-                      energy):
+                      energy, closed_form=False):
     """States at ``ts`` (with the work and dissipation columns when ``energy``), status and
     step count: one diffrax solve, or the event-driven segments of a hybrid system."""
     if is_hybrid(system):
         ys, _, status, nsteps, _, _ = hybrid_solve(
             system, forcing, s0, t0, t1, ts, solver=solver, rtol=rtol, atol=atol,
             max_steps=max_steps, scale=jnp.ones_like(s0),
-            max_segments=max_steps)  # every segment takes at least one step
+            max_segments=max_steps,  # every segment takes at least one step
+            closed_form=closed_form)
         if throw:
             ys = eqx.error_if(ys, status != Status.SUCCESS, "stick–slip integration failed "
                               "(max_steps, or more switches than allowed: chattering)")
@@ -283,9 +285,10 @@ def _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, 
 
 
 @eqx.filter_jit
-def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw, energy):
+def _solve(system, forcing, solver, t0, t1, ts, s0, rtol, atol, dt0, max_steps, throw, energy,
+           closed_form):
     ys, status, nsteps = _integrate_states(system, forcing, solver, t0, t1, ts, s0, rtol, atol,
-                                           dt0, max_steps, throw, energy)
+                                           dt0, max_steps, throw, energy, closed_form)
     n = system.num_states
     s = ys[:, :n]
     status = jnp.where(
@@ -387,6 +390,12 @@ def simulate(
         check_time_grid("ts", ts, t0=float(t0), t1=float(t1))
         ts = jnp.asarray(ts, dtype=float)
     name, solver_obj = _resolve_solver(solver, system, forcing)
+    # rigid impacts on a linear structure under harmonics: flights in closed form, unless
+    # a solver was named
+    closed_form = ((solver is None or solver == "auto") and is_hybrid(system)
+                   and in_closed_form(system, forcing))
+    if closed_form:
+        name = "closed-form"
     s0 = system.rest_state() if y0 is None else system.to_internal(jnp.asarray(y0, dtype=float))
     f = lambda x: jnp.asarray(x, dtype=float)
     out = _solve(
@@ -403,6 +412,7 @@ def simulate(
         max_steps,
         False,    # failures come back as a status; ``throw`` is checked here, on the host
         bool(energy),
+        closed_form,
     )
     traj = Trajectory(**out, solver=name)
     if throw and not is_traced(traj.status) and int(traj.status) != Status.SUCCESS:

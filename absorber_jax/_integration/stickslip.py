@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import optimistix as optx
 
 from .._core.status import Status, from_diffrax
+from .flights import closed_form_segment
 from .rootfind import AbstractWrappedRootFinder
 
 # segments allowed per forcing period (stick–slip has 2 to 4; more means chattering)
@@ -83,7 +84,7 @@ def _sg(x):
 
 
 def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_steps, scale,
-                 max_segments, norm=optx.rms_norm, log=False):
+                 max_segments, norm=optx.rms_norm, log=False, closed_form=False):
     """Integrate hybrid ``system`` from scaled state ``x0`` at ``t0`` to ``t1``.
 
     ``ts``: save times in ``[t0, t1]`` (or None).  Returns ``(ys at ts or None, state at
@@ -119,28 +120,20 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
                                  dtmax=system.event_step_limit(forcing))
     ts_b = None if ts is None else _sg(ts)
 
-    def segment(t, x, mode):
+    def diffrax_segment(t, x, mode, ys, start):
         term = diffrax.ODETerm(lambda t_, x_, a: rate(t_, x_, mode))
-        # an upcrossing of the switch from where the segment starts (or zero): a start a
-        # rounding above zero (a state put back on a rigid wall, moving off it) must not
-        # hide the next crossing when one step spans a whole short flight (a Zeno sequence)
-        start = jnp.maximum(_sg(switch(t, x, mode)), 0.0)
         event = diffrax.Event(lambda t, y, args, **kw: switch(t, y, mode) - start,
                               root_finder=root, direction=True)
         subs = [diffrax.SubSaveAt(t1=True)]
         if ts is not None:
             subs.append(diffrax.SubSaveAt(ts=jnp.clip(ts_b, t, t1b)))
         saveat = diffrax.SaveAt(subs=subs)
-        return diffrax.diffeqsolve(term, solver, t, t1b, None, x, saveat=saveat,
-                                   stepsize_controller=ctrl, max_steps=max_steps,
-                                   throw=False, event=event, adjoint=diffrax.ForwardMode())
-
-    def body(c):
-        t, x, mode, k, st, nsteps, ys, impacts, closed, events = c
-        sol = segment(t, x, mode)
+        sol = diffrax.diffeqsolve(term, solver, t, t1b, None, x, saveat=saveat,
+                                  stepsize_controller=ctrl, max_steps=max_steps,
+                                  throw=False, event=event, adjoint=diffrax.ForwardMode())
         hit = sol.event_mask
         # a located event counts even when the bisection ran out of iterations (rounding
-        # of t kept |g| above its tolerance): the residual check below decides
+        # of t kept |g| above its tolerance): the residual check in body decides
         search_out = sol.result == diffrax.RESULTS.promote(
             optx.RESULTS.nonlinear_max_steps_reached)
         ok = ((sol.result == diffrax.RESULTS.successful)
@@ -149,9 +142,30 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         t_end = _sg(sol.ts[0][-1])
         x_end = sol.ys[0][-1]
         # the state at the located time with its tangent at fixed time (whatever tangent
-        # diffrax gives the event time, it is removed here), then the event-time tangent by
-        # the implicit function theorem
-        x_hat = x_end - rate(t_end, _sg(x_end), mode) * (sol.ts[0][-1] - t_end)
+        # diffrax gives the event time, it is removed here)
+        x_end = x_end - rate(t_end, _sg(x_end), mode) * (sol.ts[0][-1] - t_end)
+        if ts is not None:
+            # samples of this segment: from its start (inclusive) to the event (exclusive)
+            in_seg = (ts_b >= t) & ((ts_b < t_end) | (~hit & (ts_b <= t_end)))
+            ys = jnp.where(in_seg[:, None], sol.ys[1], ys)
+        return t_end, x_end, hit, st, sol.stats["num_steps"], ys
+
+    if closed_form:
+        segment = closed_form_segment(system, forcing, scale, t0b, t1, ts,
+                                      system.event_step_limit(forcing), max_steps,
+                                      lambda t, x, mode: switch(t, x, mode),
+                                      jnp.zeros_like(mode0))
+    else:
+        segment = diffrax_segment
+
+    def body(c):
+        t, x, mode, k, st, nsteps, ys, impacts, closed, events = c
+        # an upcrossing of the switch from where the segment starts (or zero): a start a
+        # rounding above zero (a state put back on a rigid wall, moving off it) must not
+        # hide the next crossing when one step spans a whole short flight (a Zeno sequence)
+        start = jnp.maximum(_sg(switch(t, x, mode)), 0.0)
+        t_end, x_hat, hit, st, steps, ys = segment(t, x, mode, ys, start)
+        # the event-time tangent by the implicit function theorem
         g = switch(t_end, x_hat, mode)
         _, gdot = jax.jvp(lambda tt, xx: switch(tt, xx, mode), (t_end, _sg(x_hat)),
                           (jnp.ones_like(t_end), rate(t_end, _sg(x_hat), mode)))
@@ -165,18 +179,14 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
         new_mode, x_proj = system.next_mode(t_end, x_star * scale, forcing, mode)
         x_proj = x_proj / scale
         new_mode = jnp.where(hit, new_mode, mode)
-        x_new = jnp.where(hit, x_proj - rate(t_end, _sg(x_proj), new_mode) * dt, x_end)
-        if ts is not None:
-            # samples of this segment: from its start (inclusive) to the event (exclusive)
-            in_seg = (ts_b >= t) & ((ts_b < t_end) | (~hit & (ts_b <= t_end)))
-            ys = jnp.where(in_seg[:, None], sol.ys[1], ys)
+        x_new = jnp.where(hit, x_proj - rate(t_end, _sg(x_proj), new_mode) * dt, x_hat)
         impacts = impacts + (hit & system.event_is_impact(t_end, _sg(x_star) * scale, forcing,
                                                           mode)).astype(int)
         closed = closed + jnp.where(system.in_contact(mode), t_end - t, 0.0)
         if log:
             times, modes = events
             events = (times.at[k].set(jnp.where(hit, t_end, jnp.inf)), modes.at[k].set(mode))
-        return (t_end, x_new, new_mode, k + 1, st, nsteps + sol.stats["num_steps"], ys,
+        return (t_end, x_new, new_mode, k + 1, st, nsteps + steps, ys,
                 impacts, closed, events)
 
     def cond(c):

@@ -30,6 +30,7 @@ import numpy as np
 
 from .._core.status import Status
 from .._core.tables import steady_dataset
+from .._integration.flights import hermite_apex
 from .._integration.flow import (
     accurate_tangents,
     event_counts,
@@ -514,19 +515,8 @@ def free_flight_apexes(pen, rate, acc, dt, length, speed, xp=np):
     p0, p1, r0, r1 = pen[:-1], pen[1:], rate[:-1] * dt, rate[1:] * dt
     smooth = xp.abs(r1 - r0 - 0.5 * (acc[:-1] + acc[1:]) * dt**2) <= 0.1 * (r0 - r1)
     turn = (r0 > 0) & (r1 <= 0) & smooth & ~held[:-1] & ~held[1:]
-    # H(τ) = (2τ³ - 3τ² + 1) p0 + (τ³ - 2τ² + τ) r0 + (-2τ³ + 3τ²) p1 + (τ³ - τ²) r1
-    a = 6 * (p0 - p1) + 3 * (r0 + r1)
-    b = 6 * (p1 - p0) - 4 * r0 - 2 * r1
-    c = r0
-    disc = xp.sqrt(xp.maximum(b * b - 4 * a * c, 0.0))
-    q = -0.5 * (b + xp.where(b < 0, -1.0, 1.0) * disc)
     with np.errstate(divide="ignore", invalid="ignore"):
-        roots = xp.stack([q / a, c / q])                     # both roots, stably
-        inside = (roots >= 0) & (roots <= 1)
-    tau = xp.where(inside[0], roots[0], xp.where(inside[1], roots[1], 0.5))
-    tau = xp.clip(xp.nan_to_num(tau, nan=0.5), 0.0, 1.0)
-    h = ((2 * tau**3 - 3 * tau**2 + 1) * p0 + (tau**3 - 2 * tau**2 + tau) * r0
-         + (-2 * tau**3 + 3 * tau**2) * p1 + (tau**3 - tau**2) * r1)
+        tau, h = hermite_apex(p0, p1, r0, r1, xp=xp)
     start = xp.arange(pen.shape[0] - 1)[:, None]
     return turn, xp.maximum(h, xp.maximum(p0, p1)), (start + tau) * dt
 

@@ -337,6 +337,11 @@ class ImpactAbsorber(AbstractAbsorberSystem):
     def hybrid(self) -> bool:
         return self.contact.exact
 
+    @property
+    def affine_modes(self) -> bool:
+        # a linear primary; the absorber flies free or is held against a wall
+        return self.contact.exact
+
     def _free_acceleration(self, t, s, forcing):
         """The primary's acceleration [m/s²] with the absorber flying free (the absorber's
         acceleration relative to it is minus this)."""
@@ -551,6 +556,12 @@ class FrictionAbsorber(AbstractAbsorberSystem):
     @property
     def hybrid(self) -> bool:
         return self.friction.exact
+
+    @property
+    def affine_modes(self) -> bool:
+        # kept on the general integrator (the slip modes' friction laws may be nonlinear
+        # in the sliding velocity)
+        return False
 
     def holding_force(self, t, s, forcing):
         """Friction force ``Fnl`` [N] that keeps the absorber stuck (``Ẋ = 0``): both masses

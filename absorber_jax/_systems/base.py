@@ -173,6 +173,15 @@ class AbstractHybridSystem(AbstractSystem):
     def hybrid(self) -> bool:
         """``True`` when integrated by switching modes at events."""
 
+    @property
+    @abc.abstractmethod
+    def affine_modes(self) -> bool:
+        """``True`` when every mode's rate is affine in the state and in the forcing's
+        value and depends on time through the forcing only,
+        ``mode_rate(t, s, F, m) = A_m s + b_m F(t) + d_m`` (a linear structure with rigid
+        impact elements): its flights between events are then integrated in closed form
+        under a forcing with exact harmonics (``absorber_jax._integration.flights``)."""
+
     @abc.abstractmethod
     def mode_of(self, t, s, forcing):
         """Integer mode (or per-element modes) of internal state ``s`` at time ``t``."""

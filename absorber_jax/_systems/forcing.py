@@ -108,6 +108,13 @@ class AbstractPeriodicForcing(AbstractForcing):
         """``(orders, coefficients)``: integer orders (a NumPy array) and complex
         coefficients ``c`` with ``F(t) = Im Σ c e^{i k ω t}`` (class docstring)."""
 
+    @property
+    @abc.abstractmethod
+    def harmonics_exact(self) -> bool:
+        """``True`` when ``harmonics()`` sums to the signal exactly (a closed form), not a
+        truncated series: rigid-impact systems then integrate their flights in closed
+        form."""
+
 
 class AbstractSampledPeriodicForcing(AbstractPeriodicForcing):
     """A periodic forcing known through its values: ``at_phase`` and ``with_amplitude``
@@ -121,6 +128,10 @@ class AbstractSampledPeriodicForcing(AbstractPeriodicForcing):
     def with_amplitude(self, amplitude) -> "AbstractPeriodicForcing":
         gain = as_float(amplitude) / self.amplitude
         return _Transformed(self, as_float(0.0), gain)
+
+    @property
+    def harmonics_exact(self) -> bool:
+        return False  # orders 0 to FOURIER_ORDERS of sampled values
 
     def harmonics(self):
         n = FOURIER_SAMPLES
@@ -161,6 +172,10 @@ class _Transformed(AbstractPeriodicForcing):
 
     def with_amplitude(self, amplitude):
         return _Transformed(self.base, self.phase, as_float(amplitude) / self.base.amplitude)
+
+    @property
+    def harmonics_exact(self) -> bool:
+        return self.base.harmonics_exact
 
     def harmonics(self):
         orders, c = self.base.harmonics()
@@ -203,6 +218,10 @@ class Harmonic(AbstractPeriodicForcing):
         return PhasedHarmonic(amplitude=self.amplitude, omega=self.omega,
                               phase=as_float(phase))
 
+    @property
+    def harmonics_exact(self) -> bool:
+        return True
+
     def harmonics(self):
         return np.array([1]), jnp.reshape(self.amplitude, (1,)).astype(complex)
 
@@ -227,6 +246,10 @@ class PhasedHarmonic(AbstractPeriodicForcing):
 
     def at_phase(self, phase):
         return _with_field(self, "phase", self.phase + phase)
+
+    @property
+    def harmonics_exact(self) -> bool:
+        return True
 
     def harmonics(self):
         c = self.amplitude * jnp.exp(1j * self.phase)
@@ -310,6 +333,10 @@ class MultiHarmonic(AbstractPeriodicForcing):
     def at_phase(self, phase):
         k = jnp.asarray(self.orders, dtype=float)
         return eqx.tree_at(lambda f: f.phases, self, self.phases + k * phase)
+
+    @property
+    def harmonics_exact(self) -> bool:
+        return True
 
     def harmonics(self):
         return np.asarray(self.orders, dtype=int), self.amplitudes * jnp.exp(1j * self.phases)

@@ -414,6 +414,12 @@ class StructuralSystem(AbstractHybridSystem):
     def hybrid(self) -> bool:
         return self._exact_index() >= 0 or bool(self._rigid())
 
+    @property
+    def affine_modes(self) -> bool:
+        # a linear structure whose every element is a rigid impact element (no force in
+        # flight; held elements' forces from linear constraints)
+        return bool(self._rigid()) and len(self._rigid()) == len(self.elements)
+
     def mode_of(self, t, s, forcing):
         if self._rigid():
             return self._rigid_mode_of(t, s, forcing)

@@ -1,0 +1,369 @@
+r"""Closed-form flights: the segments of a hybrid integration whose modes are linear.
+
+Between two events a rigid-impact system (linear structure, rigid walls, a harmonic load)
+obeys a linear ODE with constant coefficients, forced by a sum of harmonics:
+
+$$\dot x = A_m x + d_m + b_m F(t), \qquad
+F(t) = \mathrm{Im}\sum_j c_j e^{i k_j \omega t}
+     = \sum_j \big(\mathrm{Im}\,c_j \cos k_j\omega t + \mathrm{Re}\,c_j \sin k_j\omega t\big),$$
+
+``A_m``, ``b_m``, ``d_m`` depending on the mode ``m`` only (free flight, or a body held
+against its wall).  Adding ``1`` and the pairs ``(cos k_jωt, sin k_jωt)`` to the state makes
+it autonomous, ``ż = Â z`` with
+
+$$\hat A = \begin{pmatrix} A_m & d_m & b_m\,\mathrm{Im}\,c_1 & b_m\,\mathrm{Re}\,c_1 & \cdots\\
+0 & 0 & & & \\ & & 0 & -k_1\omega & \\ & & k_1\omega & 0 & \\ & & & & \ddots \end{pmatrix},$$
+
+so the flow over a time ``τ`` is the matrix exponential, ``z(t + τ) = e^{\hat A τ} z(t)``:
+exact to rounding, whatever the tolerances (C. Moler, C. Van Loan, *Nineteen dubious ways
+to compute the exponential of a matrix, twenty-five years later*, SIAM Review 45 (2003) 3).
+
+**Nodes.**  The flight is evaluated on nodes ``h`` apart, ``h`` the hybrid integration's
+step limit (``event_step_limit``, a 256th of the forcing period) or less, so that
+``‖Â h‖∞ ≤ 1/4``: ``E = e^{Â h}`` is then its Taylor polynomial of degree
+``TAYLOR_ORDER`` (remainder below ``1e-17``), and the ``NODES`` nodes of a window are
+``E, E², …`` times the window's first state (one batched product).  An event is the first
+node where the switching function has crossed zero upwards, as with diffrax's steps; it
+is then located on the exact flow between that node and the one before it (Newton steps
+kept inside the bracket by bisection, to the rounding of the time).  Save times between nodes are
+reached from the node before them, ``e^{Â δ}`` with ``δ < h``.
+
+**Derivatives.**  Everything is written in JAX, so forward-mode AD differentiates the
+flow in the state, the parameters (through ``Â``) and the forcing; the event times are
+located on values without tangents, and the segment returns the state at the located
+time with its tangent at fixed time, which ``hybrid_solve`` turns into the saltation of
+the event (its module docstring).
+
+Systems declare such modes through ``AbstractHybridSystem.affine_modes``; the matrices
+are taken from ``mode_rate`` by forward-mode AD with the forcing's value as an input.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from .._core.status import Status
+from .._systems.forcing import AbstractForcing, AbstractPeriodicForcing
+
+# Taylor degree of e^{Âh} with ‖Âh‖∞ <= NORM_BOUND: remainder <= 0.25^13/13! e^0.25 ~ 3e-18
+TAYLOR_ORDER = 12
+NORM_BOUND = 0.25
+# nodes per window (one batched product of the powers E, ..., E^NODES)
+NODES = 32
+# event location: Newton steps bracketed by bisection, at most this many
+LOCATE_ITERATIONS = 80
+# an apex of a switching function between two nodes, estimated by the cubic through their
+# values and rates (error ~ (ωh)⁴/384 ~ 1e-9 of its amplitude), is checked on the exact flow
+# when it comes within this of zero
+APEX_MARGIN = 1e-6
+# times within this fraction of a node spacing of a node count as on it (rounding of the
+# grid's times)
+NODE_SLACK = 1e-6
+
+
+class _ValueForcing(AbstractForcing):
+    """A forcing whose value is ``value`` at every time (the rate's load as an input of
+    ``mode_rate``, differentiated to get ``b``)."""
+
+    value: object
+    omega: object
+    amplitude: object
+
+    def __call__(self, t):
+        return self.value
+
+
+def mode_matrix(system, forcing, mode, scale, t):
+    """``Â`` of ``mode`` on the scaled state: ``ż = Â z`` with
+    ``z = (x, 1, cos k_jωt, sin k_jωt, …)`` (module docstring).  ``t``: any time [s] (the
+    modes are time-invariant); no tangent."""
+    orders, c = forcing.harmonics()
+    orders = jnp.asarray(orders, dtype=float)
+    n = scale.shape[0]
+
+    def rate(x, f):
+        load = _ValueForcing(f, forcing.omega, forcing.amplitude)
+        return system.mode_rate(t, x * scale, load, mode) / scale
+
+    x0, f0 = jnp.zeros((n,), scale.dtype), jnp.zeros((), scale.dtype)
+    d = rate(x0, f0)
+    A, b = jax.jacfwd(rate, argnums=(0, 1))(x0, f0)
+    forced = jnp.stack([jnp.imag(c), jnp.real(c)], axis=-1).reshape(-1)  # (2J,)
+    top = jnp.concatenate([A, d[:, None], b[:, None] * forced[None, :]], axis=1)
+    J = orders.shape[0]
+    kw = orders * forcing.omega
+    blocks = jnp.zeros((2 * J, 2 * J), scale.dtype)
+    idx = jnp.arange(J)
+    blocks = blocks.at[2 * idx, 2 * idx + 1].set(-kw).at[2 * idx + 1, 2 * idx].set(kw)
+    lower = jnp.zeros((1 + 2 * J, n + 1 + 2 * J), scale.dtype)
+    lower = lower.at[1:, n + 1:].set(blocks)
+    return jnp.concatenate([top, lower], axis=0)
+
+
+def augmented_state(x, forcing, t):
+    """``z = (x, 1, cos k_jωt, sin k_jωt, …)`` at time ``t`` [s]."""
+    orders, _ = forcing.harmonics()
+    phase = jnp.asarray(orders, dtype=float) * forcing.omega * t
+    osc = jnp.stack([jnp.cos(phase), jnp.sin(phase)], axis=-1).reshape(-1)
+    return jnp.concatenate([x, jnp.ones((1,), x.dtype), osc])
+
+
+def expm_small(B):
+    """``e^B`` for ``‖B‖∞ <= NORM_BOUND`` (Taylor, Horner's scheme)."""
+    eye = jnp.eye(B.shape[-1], dtype=B.dtype)
+    E = eye
+    for m in range(TAYLOR_ORDER, 0, -1):
+        E = eye + (B / m) @ E
+    return E
+
+
+def flow_small(B, z):
+    """``e^B z`` for ``‖B‖∞ <= NORM_BOUND`` (Taylor, Horner's scheme on the vector)."""
+    v = z
+    for m in range(TAYLOR_ORDER, 0, -1):
+        v = z + (B @ v) / m
+    return v
+
+
+def hermite_apex(p0, p1, r0, r1, xp=jnp):
+    """The top of the cubic Hermite interpolant on ``[0, 1]`` of values ``p0``, ``p1`` and
+    rates ``r0 > 0 >= r1`` (per unit interval): ``(τ, height)``, ``τ`` the root of its
+    derivative in ``[0, 1]`` (0.5 where none is found) and the height there."""
+    # H(τ) = (2τ³ - 3τ² + 1) p0 + (τ³ - 2τ² + τ) r0 + (-2τ³ + 3τ²) p1 + (τ³ - τ²) r1;
+    # H'(τ) = a τ² + b τ + c
+    a = 6 * (p0 - p1) + 3 * (r0 + r1)
+    b = 6 * (p1 - p0) - 4 * r0 - 2 * r1
+    c = r0
+    disc = xp.sqrt(xp.maximum(b * b - 4 * a * c, 0.0))
+    q = -0.5 * (b + xp.where(b < 0, -1.0, 1.0) * disc)
+    safe = lambda d: xp.where(d == 0, 1.0, d)  # noqa: E731
+    roots = xp.stack([xp.where(a == 0, xp.inf, q / safe(a)), xp.where(q == 0, xp.inf, c / safe(q))])
+    inside = (roots >= 0) & (roots <= 1)
+    tau = xp.where(inside[0], roots[0], xp.where(inside[1], roots[1], 0.5))
+    tau = xp.clip(tau, 0.0, 1.0)
+    height = ((2 * tau**3 - 3 * tau**2 + 1) * p0 + (tau**3 - 2 * tau**2 + tau) * r0
+              + (-2 * tau**3 + 3 * tau**2) * p1 + (tau**3 - tau**2) * r1)
+    return tau, height
+
+
+def _powers(E, count):
+    """``E, E², …, E^count`` (``count`` a power of two), by doubling."""
+    P = E[None]
+    while P.shape[0] < count:
+        P = jnp.concatenate([P, jnp.einsum("ij,kjl->kil", P[-1], P)], axis=0)
+    return P
+
+
+def in_closed_form(system, forcing) -> bool:
+    """Whether the flights of hybrid ``system`` under ``forcing`` are integrated in closed
+    form: affine modes and a periodic forcing whose harmonics are exact."""
+    return (bool(system.affine_modes) and isinstance(forcing, AbstractPeriodicForcing)
+            and bool(forcing.harmonics_exact))
+
+
+def _sg(x):
+    return jax.lax.stop_gradient(x)
+
+
+def closed_form_segment(system, forcing, scale, t0, t1, ts, h_max, max_nodes, switch,
+                        free_mode):
+    """The segment function of ``hybrid_solve`` for systems with affine modes: from scaled
+    state ``x`` at time ``t`` [s] in ``mode`` to the first upward crossing of
+    ``switch(t, x, mode)`` past its start value ``start`` (or to ``t1``), the save times
+    ``ts`` it passes written into ``ys``.
+
+    Returns ``(t_end, x_end, hit, status, nodes, ys)``: the located event time (no
+    tangent) or ``t1``; the state there with its tangent at fixed time; whether an event
+    ended it; the status; the nodes evaluated; the samples.  The nodes lie on the grid
+    ``t0 + j h`` of the whole integration (``h``: ``h_max`` divided by the smallest
+    integer that bounds ``‖Â h‖∞``), so that save times on that grid are nodes.
+    ``max_nodes``: the node budget of one segment.  The node operators of ``free_mode``
+    (every contact open, the commonest) are computed once per integration."""
+    n = scale.shape[0]
+    # the flights run on the system's own state scale (‖Â‖ then ~ the motion's rates,
+    # whatever the caller's scale)
+    nat = system.state_scale(forcing)
+    ratio = scale / nat
+    ts_b = None if ts is None else _sg(ts)
+    slots = NODES
+    t0b, t1b = _sg(t0), _sg(t1)
+
+    def operators(mode):
+        """``Â``, the node spacing ``h`` and ``I, E, …, E^(NODES-1)`` of ``mode``."""
+        A = mode_matrix(system, forcing, mode, nat, t0b)
+        norm = _sg(jnp.max(jnp.sum(jnp.abs(A), axis=1)))
+        h = h_max / jnp.maximum(jnp.ceil(norm * h_max / NORM_BOUND), 1.0)
+        E = expm_small(A * h)
+        P = jnp.concatenate([jnp.eye(E.shape[0], dtype=E.dtype)[None],
+                             _powers(E, NODES)[:-1]], axis=0)
+        return A, h, P
+
+    free = operators(free_mode)
+
+    def near(z, d, A, h):
+        """``e^{A d} z``: one first-order step where ``|d|`` is a rounding of the node grid,
+        else the Taylor flow."""
+        return jax.lax.cond(jnp.abs(d) <= NODE_SLACK * h, lambda: z + d * (A @ z),
+                            lambda: flow_small(A * d, z))
+
+    def run(t, x, mode, ys, start):
+        A, h, P = jax.lax.cond(jnp.all(mode == free_mode), lambda: free,
+                               lambda: operators(mode))
+        A_b = _sg(A)
+
+        def g_of(tt, z):
+            return switch(tt, z[:n] / ratio, mode) - start
+
+        def gdot_of(tt, z):
+            return jax.jvp(lambda t_, x_: switch(t_, x_ / ratio, mode), (tt, z[:n]),
+                           (jnp.ones_like(tt), (A_b @ z)[:n]))[1]
+
+        def gddot_of(tt, z):
+            return jax.jvp(gdot_of, (tt, z), (jnp.ones_like(tt), A_b @ z))[1]
+
+        def window(c):
+            tw, zw, ys, nodes, _, _, _ = c
+            # the first node at or after tw, then NODES - 1 more, h apart
+            n1 = t0b + h * jnp.ceil((tw - t0b) / h - NODE_SLACK)
+            n1 = jnp.maximum(n1, tw)
+            Z = P @ near(zw, n1 - tw, A, h)                  # (NODES, N)
+            tn = n1 + h * jnp.arange(NODES)
+            # the window ends at its last node, at t1, or at its last save slot
+            te = jnp.minimum(tn[-1], t1b)
+            if ts is not None:
+                i0 = jnp.searchsorted(ts_b, tw, side="left")
+                cut = jnp.where(i0 + slots - 1 < ts_b.shape[0],
+                                ts_b[jnp.minimum(i0 + slots - 1, ts_b.shape[0] - 1)], jnp.inf)
+                te = jnp.where(cut > tw, jnp.minimum(te, cut), te)
+            # the nodes before te (one on te, to rounding, is te's own point)
+            valid = tn < te - NODE_SLACK * h
+            j_last = jnp.sum(valid)
+            z_last = jnp.where(j_last > 0, Z[jnp.maximum(j_last - 1, 0)], zw)
+            t_last = jnp.where(j_last > 0, tn[jnp.maximum(j_last - 1, 0)], tw)
+            on = jnp.minimum(j_last, NODES - 1)
+            z_end = jnp.where(j_last < NODES, near(Z[on], te - tn[on], A, h),
+                              near(z_last, te - t_last, A, h))
+            # the window's points: its start, the nodes before te, te; each point's
+            # predecessor (te's is the last node before it)
+            pt = jnp.concatenate([tw[None], tn, te[None]])
+            pz = jnp.concatenate([zw[None], Z, z_end[None]], axis=0)
+            live = jnp.concatenate([valid, jnp.ones((1,), bool)])
+            prev = jnp.concatenate([jnp.arange(NODES), j_last[None]])
+            g = jax.vmap(g_of)(pt, _sg(pz))
+            gd = jax.vmap(gdot_of)(pt, _sg(pz))
+            ga, gda, ta_all = g[prev], gd[prev], pt[prev]
+            g1, gd1 = g[1:], gd[1:]
+            dt = pt[1:] - ta_all
+            cross = live & (g1 > 0)
+            # an apex of g between two points below zero: the switch may have crossed and
+            # crossed back between them; checked where the cubic through their values
+            # and rates comes within APEX_MARGIN of zero
+            _, height = hermite_apex(ga, g1, gda * dt, gd1 * dt)
+            apex = live & (gda > 0) & (gd1 < 0) & (height > -APEX_MARGIN)
+            flag = cross | apex
+            flagged = jnp.any(flag)
+            k = jnp.argmax(flag)
+            ta, za, tb = ta_all[k], pz[prev[k]], pt[k + 1]
+
+            def top():
+                # the apex itself (ġ falls through zero) and whether the flight passes the
+                # switch there
+                t_top = _upcrossing(lambda tt, z: -gdot_of(tt, z),
+                                    lambda tt, z: -gddot_of(tt, z), A_b, ta, _sg(za), tb)
+                return t_top, g_of(t_top, flow_small(A_b * (t_top - ta), _sg(za))) > 0
+
+            # a crossing at point k + 1, else (an apex flagged) the crossing before the apex
+            t_top, over = jax.lax.cond(flagged & ~cross[k], top,
+                                       lambda: (tb, jnp.zeros((), bool)))
+            found = flagged & (cross[k] | over)
+            t_hit = jax.lax.cond(found, lambda: _upcrossing(g_of, gdot_of, A_b, ta, _sg(za),
+                                                            jnp.where(cross[k], tb, t_top)),
+                                 lambda: te)
+            # an apex clear of the wall ends the window at the point after it
+            t_stop = jnp.where(found, t_hit, jnp.where(flagged, tb, te))
+            z_stop = jnp.where(found, flow_small(A * (t_stop - ta), za),
+                               jnp.where(flagged, pz[k + 1], z_end))
+            final = ~found & (t_stop >= t1b)
+            if ts is not None:
+                ys = _samples(A, ys, ts_b, i0, tw, zw, tn, Z, j_last, t_stop, final, h, ratio)
+            return t_stop, z_stop, ys, nodes + j_last + 1, found, final, jnp.all(
+                jnp.isfinite(_sg(z_stop)))
+
+        def cond(c):
+            _, _, _, nodes, found, at_end, finite = c
+            return ~found & ~at_end & finite & (nodes < max_nodes)
+
+        z0 = augmented_state(x * ratio, forcing, t)
+        c0 = (t, z0, ys, jnp.zeros((), int), jnp.zeros((), bool), t >= t1b,
+              jnp.ones((), bool))
+        t_end, z_end, ys, nodes, found, at_end, finite = jax.lax.while_loop(cond, window, c0)
+        status = jnp.where(~finite, Status.SOLVER_FAILED,
+                           jnp.where(found | at_end, Status.SUCCESS, Status.MAX_STEPS))
+        return t_end, z_end[:n] / ratio, found, status, nodes, ys
+
+    return run
+
+
+def _samples(A, ys, ts_b, i0, tw, zw, tn, Z, j_last, t_stop, final, h, ratio):
+    """``ys`` with the save times of a window's slots ``i0, i0 + 1, …`` that lie in
+    ``[tw, t_stop)`` (``t_stop`` too when ``final``) written: each from the node at or
+    before it (the window's start before its first node), exactly on the node grid, else
+    by ``e^{Aδ}``; states divided by ``ratio`` back to the caller's scale."""
+    slot = i0 + jnp.arange(NODES)
+    real = slot < ts_b.shape[0]
+    idx = jnp.minimum(slot, ts_b.shape[0] - 1)
+    tau = ts_b[idx]
+    inside = real & (tau >= tw) & ((tau < t_stop) | (final & (tau <= t_stop)))
+    j = jnp.floor((tau - tn[0]) / h + NODE_SLACK).astype(int)
+    j = jnp.clip(j, -1, jnp.maximum(j_last - 1, -1))
+    base = jnp.where((j >= 0)[:, None], Z[jnp.maximum(j, 0)], zw[None])
+    t_base = jnp.where(j >= 0, tn[jnp.maximum(j, 0)], tw)
+    delta = jnp.where(inside, tau - t_base, 0.0)
+    # on the node grid (up to rounding) one first-order step is exact to O(δ²)
+    off_grid = jnp.any(jnp.abs(delta) > NODE_SLACK * h)
+    zs = jax.lax.cond(
+        off_grid,
+        lambda: jax.vmap(lambda d, zb: flow_small(A * d, zb))(delta, base),
+        lambda: base + delta[:, None] * (base @ A.T))
+    # slots past the last save time are dropped (their clipped index repeats the last one)
+    return ys.at[jnp.where(real, slot, ts_b.shape[0])].set(
+        jnp.where(inside[:, None], zs[:, :ratio.shape[0]] / ratio, ys[idx]), mode="drop")
+
+
+def _upcrossing(g_of, gdot_of, A, ta, za, tb):
+    """The upcrossing of ``g`` in ``(ta, tb]`` along the flow ``e^{A(τ - ta)} za``
+    (``g(ta) <= 0 < g(tb)``): the bracket's upper end once its Newton correction ``g/ġ``
+    is below the rounding of the time there, or the bracket is; Newton steps, bisection
+    where one leaves the bracket (no tangents)."""
+
+    def at(tau):
+        z = flow_small(A * (tau - ta), za)
+        return g_of(tau, z), gdot_of(tau, z)
+
+    def body(c):
+        lo, hi, tau, i, _ = c
+        g, gd = at(tau)
+        lo = jnp.where(g <= 0, tau, lo)
+        hi = jnp.where(g > 0, tau, hi)
+        newton = tau - g / jnp.where(gd == 0, 1.0, gd)
+        inside = (newton > lo) & (newton < hi) & (gd != 0)
+        nxt = jnp.where(inside, newton, 0.5 * (lo + hi))
+        # converged on the crossing's upper side (g rises through zero there; a start on
+        # the wall, g(ta) = 0, is not the crossing) to a Newton correction below the
+        # rounding of t (a slow impact's g is small long before its time is exact), or the
+        # bracket is at rounding
+        ulp = 4 * jnp.finfo(hi.dtype).eps * jnp.abs(hi)
+        done = ((g > 0) & (g <= jnp.abs(gd) * ulp)) | (hi - lo <= ulp)
+        return lo, hi, nxt, i + 1, done
+
+    def cond(c):
+        _, _, _, i, done = c
+        return ~done & (i < LOCATE_ITERATIONS)
+
+    g_b, _ = at(tb)
+    g_a, _ = at(ta)
+    guess = ta + (tb - ta) * (-g_a) / jnp.where(g_b - g_a > 0, g_b - g_a, 1.0)
+    guess = jnp.clip(guess, ta, tb)
+    _, hi, _, _, _ = jax.lax.while_loop(cond, body, (ta, tb, guess, 0, jnp.zeros((), bool)))
+    return hi

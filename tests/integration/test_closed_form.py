@@ -1,0 +1,117 @@
+"""Closed-form flights of rigid-impact systems (``_integration.flights``): the affine modes
+against the systems' own rates, whole runs against the event-exact reference of
+tests/reference_impacts.py (to rounding, where diffrax gets its tolerance), an excursion
+through a wall between two nodes, and derivatives against central differences."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from reference_impacts import RigidImpactAbsorber, RigidStopOscillator
+
+import absorber_jax as aj
+from absorber_jax._integration.flights import augmented_state, in_closed_form, mode_matrix
+
+SCENE = dict(M=1.0, k=1e3, c=0.5, m=0.2, gap=2e-3)
+
+
+def _absorber(e=0.6):
+    return aj.ImpactAbsorber(**SCENE, contact=aj.Restitution(e))
+
+
+def _building():
+    st = aj.shear_building([1000.0] * 3, [1e6] * 3, modal_damping=0.02)
+    ball = aj.ImpactDamper("floor3", m=50.0, gap=0.01, contact=aj.Restitution(0.7))
+    return aj.StructuralSystem(st, [ball], load="floor3")
+
+
+def test_affine_modes_reproduce_every_modes_rate():
+    rng = np.random.default_rng(0)
+    forcings = [aj.Harmonic(amplitude=3.0, omega=30.0),
+                aj.MultiHarmonic([2.0, 0.7, 0.3], 25.0, phases=[0.1, 1.0, -0.4],
+                                 orders=[0, 1, 3])]
+    cases = [(_absorber(), [0, 1, -1]),
+             (_building(), [np.array([0]), np.array([1]), np.array([-1])])]
+    for system, modes in cases:
+        assert system.affine_modes and system.hybrid
+        for forcing in forcings:
+            assert in_closed_form(system, forcing)
+            nat = system.state_scale(forcing)
+            for mode in modes:
+                A = mode_matrix(system, forcing, jnp.asarray(mode), nat, 0.0)
+                for _ in range(3):
+                    t = float(rng.uniform(0, 1))
+                    s = jnp.asarray(rng.normal(size=nat.shape)) * nat
+                    z = augmented_state(s / nat, forcing, t)
+                    want = system.mode_rate(t, s, forcing, jnp.asarray(mode))
+                    got = (A @ z)[: nat.shape[0]] * nat
+                    np.testing.assert_allclose(got, want, rtol=1e-12,
+                                               atol=1e-12 * float(jnp.max(jnp.abs(want))))
+    # sampled forcings and systems with friction keep the general integrator
+    assert not in_closed_form(_absorber(), aj.PeriodicForcing(lambda t: jnp.sin(30 * t), 30.0))
+    fa = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=0.2, k2=1.8e3, c2=0.0,
+                             normal_force=2.0, friction=aj.Coulomb(mu=0.3))
+    assert fa.hybrid and not fa.affine_modes
+
+
+def test_runs_match_the_event_exact_reference_to_rounding():
+    # a run through impacts and sticking (the hard scene's chatter): closed form against the
+    # reference's closed-form flights to rounding; diffrax (solver named) to its tolerance
+    ref_sys = RigidImpactAbsorber(*SCENE.values(), 0.6, 3.0, 30.0)
+    ts = np.linspace(0.0, 1.0, 1001)
+    ref, events = ref_sys.run([0, 0, 0, 0], 0.0, 1.0, ts)
+    assert sum(k == "impact" for _, k in events) > 50
+    scale = np.max(np.abs(ref[:, 0]))
+    errs = {}
+    for solver in (None, "tsit5"):
+        tr = aj.simulate(_absorber(), aj.Harmonic(amplitude=3.0, omega=30.0), 1.0, ts=ts,
+                         integrator=aj.Integrator(solver=solver, rtol=1e-9, atol=1e-11))
+        assert int(tr.status) == 0
+        errs[solver] = max(np.max(np.abs(np.asarray(tr.x1) - ref[:, 0])),
+                           np.max(np.abs(np.asarray(tr.x2) - ref[:, 2]))) / scale
+    assert tr.solver == "tsit5"
+    assert errs[None] < 1e-10 and errs[None] < errs["tsit5"], errs
+
+
+def test_an_excursion_through_the_wall_between_two_nodes_is_caught():
+    # x'' + 0.1 x' + x = A sin(t + φ), stop at x = 1: the linear response -10 A cos(t + φ)
+    # overshoots the stop by 1e-6 of it for 2.8e-3 s around t = π - φ, midway between two
+    # nodes (2π/256 apart): the flight's apex between them is checked on the exact flow
+    A, phi = 0.1 * (1 + 1e-6), np.pi / 256
+    st = aj.structure_from_matrices([[1.0]], [[1.0]], damping=[[0.1]], dof_names=["x"])
+    system = aj.StructuralSystem(st, [aj.Contact("x", gap=1.0, contact=aj.Restitution(0.8))],
+                                 load="x")
+    forcing = aj.Harmonic(amplitude=A, omega=1.0).at_phase(phi)
+    y0 = [-10 * A * np.cos(phi), 10 * A * np.sin(phi)]
+    T = 2 * np.pi
+    tr = aj.simulate(system, forcing, T, y0=y0, ts=np.array([0.0, T]))
+    # the reference: the same oscillator seen from time φ (its forcing is A sin(W t))
+    ref, events = RigidStopOscillator(1.0, 0.1, 1.0, 1.0, 0.8, A, 1.0).run(
+        y0, phi, phi + T, np.array([phi + T]))
+    assert sum(k == "impact" for _, k in events) == 1
+    end = np.asarray(tr.ys)[-1]
+    np.testing.assert_allclose(end, ref[-1], atol=1e-9)
+    # without the impact the motion would have stayed on the linear response
+    assert np.max(np.abs(ref[-1] - np.asarray(y0))) > 1e-4
+
+
+def test_period_map_derivatives_match_central_differences():
+    from absorber_jax._integration.flow import integrate_flow, make_config, state_scale
+
+    system = _absorber(0.7)
+    x0 = jnp.array([-1.5e-4, 0.125, -3.9e-4, 0.124])
+    sc = state_scale(system, aj.Harmonic(amplitude=3.0, omega=24.0))   # one fixed scale
+
+    def end(p):
+        w, gap, e = p
+        f = aj.Harmonic(amplitude=3.0, omega=w)
+        s = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=gap, contact=aj.Restitution(e))
+        ys, _ = integrate_flow((s, f), s.to_internal(x0) / sc, f.period, None,
+                               cfg=make_config(s, f))
+        return ys[-1] * sc
+
+    p = jnp.array([24.0, 2e-3, 0.7])
+    J = jax.jacfwd(end)(p)
+    for i, h in enumerate((1e-6, 1e-10, 1e-7)):
+        dp = jnp.zeros(3).at[i].set(h)
+        fd = (end(p + dp) - end(p - dp)) / (2 * h)
+        np.testing.assert_allclose(J[:, i], fd, rtol=1e-5, atol=1e-6 * float(jnp.max(jnp.abs(fd))))

@@ -22,11 +22,17 @@ to compute the exponential of a matrix, twenty-five years later*, SIAM Review 45
 step limit (``event_step_limit``, a 256th of the forcing period) or less, so that
 ``‖Â h‖∞ ≤ 1/4``: ``E = e^{Â h}`` is then its Taylor polynomial of degree
 ``TAYLOR_ORDER`` (remainder below ``1e-17``), and the ``NODES`` nodes of a window are
-``E, E², …`` times the window's first state (one batched product).  An event is the first
-node where the switching function has crossed zero upwards, as with diffrax's steps; it
-is then located on the exact flow between that node and the one before it (Newton steps
-kept inside the bracket by bisection, to the rounding of the time).  Save times between nodes are
-reached from the node before them, ``e^{Â δ}`` with ``δ < h``.
+``I, E, E², …`` times its first node's state (one batched product).  The nodes lie on the
+grid ``t0 + j h`` of the whole integration, so that save times on that grid are nodes; the
+operators of the all-open mode are computed once per integration.  An event is the first
+node where the switching function has crossed zero upwards; it is then located on the
+exact flow between that node and the one before it (Newton steps kept inside the bracket
+by bisection, to the rounding of the time).  Between two nodes below zero where the
+switching function turns (its rate from positive to negative) and the cubic through the
+two nodes' values and rates comes within ``APEX_MARGIN`` of zero, the turn itself is
+located on the exact flow: a crossing there and back between two nodes (an excursion
+through a wall near grazing) is an event, not missed.  Save times off the grid are reached
+from the node before them, ``e^{Â δ}`` with ``δ < h``.
 
 **Derivatives.**  Everything is written in JAX, so forward-mode AD differentiates the
 flow in the state, the parameters (through ``Â``) and the forcing; the event times are
@@ -49,7 +55,8 @@ from .._systems.forcing import AbstractForcing, AbstractPeriodicForcing
 # Taylor degree of e^{Âh} with ‖Âh‖∞ <= NORM_BOUND: remainder <= 0.25^13/13! e^0.25 ~ 3e-18
 TAYLOR_ORDER = 12
 NORM_BOUND = 0.25
-# nodes per window (one batched product of the powers E, ..., E^NODES)
+# nodes per window (one batched product of the powers I, E, ..., E^(NODES-1)); a window
+# also ends at its NODES-th save time
 NODES = 32
 # event location: Newton steps bracketed by bisection, at most this many
 LOCATE_ITERATIONS = 80

@@ -14,7 +14,10 @@ the default of the task at hand, from ``DEFAULTS``, the only place those default
   ``n`` periods, a run of ``simulate`` or a period-``n`` map, may take ``n`` times as many).
 
 The solver defaults to the scene's choice: explicit Tsit5, or implicit Kvaerno5 when the
-scene is stiff (``choose_solver``).
+scene is stiff (``choose_solver``).  Rigid impacts (``Restitution``) on a linear structure
+under a forcing with exact harmonics are integrated in closed form between their impacts
+(the matrix exponential, exact to rounding; ``_integration.flights``) unless a solver is
+named.
 """
 
 from __future__ import annotations

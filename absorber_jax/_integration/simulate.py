@@ -149,7 +149,9 @@ class Trajectory(eqx.Module):
     ``force_ratio`` (``|Fa|/|Fnl|`` with ``Fa = m2 Ẍ``, paper Figs. 13, 19) and ``regime``
     (0 jammed, 1 partially gliding, 2 totally gliding, judged over the forcing period ending at
     each instant); with ``energy=True``, ``work`` (done by the forcing) and ``dissipated``
-    [J]; ``status`` (see [`Status`][absorber_jax.Status]), ``num_steps`` and ``solver``.
+    [J]; ``status`` (see [`Status`][absorber_jax.Status]), ``num_steps`` and ``solver``
+    (its name; ``"closed-form"`` for rigid impacts integrated by the matrix exponential
+    between impacts, where ``num_steps`` counts the nodes evaluated).
     """
 
     ts: Times

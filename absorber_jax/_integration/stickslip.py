@@ -94,7 +94,11 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
 
     ``log``: also return the event log ``(times, modes)``, arrays of ``max_segments``:
     segment ``k`` runs in mode ``modes[k]`` and ends at ``times[k]`` (its switching
-    event; ``inf`` for the segment that reaches ``t1`` and those never run)."""
+    event; ``inf`` for the segment that reaches ``t1`` and those never run).
+
+    ``closed_form``: each segment's flight by the matrix exponential of its affine mode
+    (``_integration.flights``; ``solver``, ``rtol`` and ``atol`` then unused) instead of a
+    diffrax solve."""
 
     def rate(t, x, mode):
         return system.mode_rate(t, x * scale, forcing, mode) / scale

@@ -24,13 +24,15 @@ def _memory_maps():
 # (vm.max_map_count, 65530 by default: workers were seen at 58,000 mid-suite).  A mapping
 # that fails at the limit aborts XLA, which fits the aborts seen in workers late in a run
 # (Fatal Python error: Aborted, in the compilation cache's serialisation or
-# deserialisation), never in a fresh process.  After each test module, a worker past
-# MAX_MAPS drops JAX's in-memory caches (measured: 19,786 mappings down to 1,251); later
-# modules read their programs back from the persistent cache.
+# deserialisation), never in a fresh process.  After each test, a worker past MAX_MAPS
+# drops JAX's in-memory caches (measured: 19,786 mappings down to 1,251); later tests read
+# their programs back from the persistent cache.  After each test, not each module: one
+# module of rigid-impact scenes (tests/integration/test_impacts.py) compiles enough to
+# reach the limit by itself.
 MAX_MAPS = 20_000
 
 
-@pytest.fixture(autouse=True, scope="module")
+@pytest.fixture(autouse=True)
 def _release_compiled_programs():
     yield
     if _memory_maps() > MAX_MAPS:

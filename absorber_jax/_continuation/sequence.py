@@ -39,7 +39,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.status import Status
-from .._integration.flights import in_closed_form
 from .._integration.flow import Config, state_scale
 from .._integration.stickslip import hybrid_solve
 
@@ -63,7 +62,7 @@ def event_log(system, forcing, x, t1, cfg: Config):
         system, forcing, x, 0.0, t1, None, solver=cfg.solver, rtol=FLOW_TOL, atol=FLOW_TOL,
         max_steps=cfg.max_steps, scale=state_scale(system, forcing),
         max_segments=SLOTS + 1, log=True,
-        closed_form=cfg.closed_form and in_closed_form(system, forcing))
+        closed_form=cfg.closed_form)
     return times, modes, status
 
 

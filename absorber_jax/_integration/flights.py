@@ -274,23 +274,23 @@ def closed_form_segment(system, forcing, scale, t0, t1, ts, h_max, max_nodes, sw
             ta, za, tb = ta_all[k], pz[prev[k]], pt[k + 1]
 
             def top():
-                # the apex itself (ġ falls through zero) and whether the flight passes the
-                # switch there
+                # the apex itself (ġ falls through zero) and the switch there
                 t_top = _upcrossing(lambda tt, z: -gdot_of(tt, z),
-                                    lambda tt, z: -gddot_of(tt, z), A_b, ta, _sg(za), tb)
-                return t_top, g_of(t_top, flow_small(A_b * (t_top - ta), _sg(za))) > 0
+                                    lambda tt, z: -gddot_of(tt, z), A_b, ta, _sg(za), tb,
+                                    -gda[k], -gd1[k])
+                return t_top, g_of(t_top, flow_small(A_b * (t_top - ta), _sg(za)))
 
             # a crossing at point k + 1, else (an apex flagged) the crossing before the apex
-            t_top, over = jax.lax.cond(flagged & ~cross[k], top,
-                                       lambda: (tb, jnp.zeros((), bool)))
-            found = flagged & (cross[k] | over)
+            t_top, g_top = jax.lax.cond(flagged & ~cross[k], top, lambda: (tb, g1[k]))
+            found = flagged & (cross[k] | (g_top > 0))
             t_hit = jax.lax.cond(found, lambda: _upcrossing(g_of, gdot_of, A_b, ta, _sg(za),
-                                                            jnp.where(cross[k], tb, t_top)),
+                                                            t_top, ga[k], g_top),
                                  lambda: te)
-            # an apex clear of the wall ends the window at the point after it
+            # an apex clear of the wall ends the window at the point after it; the flow to
+            # the event only where there is one
             t_stop = jnp.where(found, t_hit, jnp.where(flagged, tb, te))
-            z_stop = jnp.where(found, flow_small(A * (t_stop - ta), za),
-                               jnp.where(flagged, pz[k + 1], z_end))
+            z_stop = jax.lax.cond(found, lambda: flow_small(A * (t_stop - ta), za),
+                                  lambda: jnp.where(flagged, pz[k + 1], z_end))
             final = ~found & (t_stop >= t1b)
             if ts is not None:
                 ys = _samples(A, ys, ts_b, i0, tw, zw, tn, Z, j_last, t_stop, final, h, ratio)
@@ -338,11 +338,11 @@ def _samples(A, ys, ts_b, i0, tw, zw, tn, Z, j_last, t_stop, final, h, ratio):
         jnp.where(inside[:, None], zs[:, :ratio.shape[0]] / ratio, ys[idx]), mode="drop")
 
 
-def _upcrossing(g_of, gdot_of, A, ta, za, tb):
+def _upcrossing(g_of, gdot_of, A, ta, za, tb, g_a, g_b):
     """The upcrossing of ``g`` in ``(ta, tb]`` along the flow ``e^{A(τ - ta)} za``
-    (``g(ta) <= 0 < g(tb)``): the bracket's upper end once its Newton correction ``g/ġ``
-    is below the rounding of the time there, or the bracket is; Newton steps, bisection
-    where one leaves the bracket (no tangents)."""
+    (``g_a = g(ta) <= 0 < g_b = g(tb)``, known to the caller): the bracket's upper end
+    once its Newton correction ``g/ġ`` is below the rounding of the time there, or the
+    bracket is; Newton steps, bisection where one leaves the bracket (no tangents)."""
 
     def at(tau):
         z = flow_small(A * (tau - ta), za)
@@ -368,8 +368,6 @@ def _upcrossing(g_of, gdot_of, A, ta, za, tb):
         _, _, _, i, done = c
         return ~done & (i < LOCATE_ITERATIONS)
 
-    g_b, _ = at(tb)
-    g_a, _ = at(ta)
     guess = ta + (tb - ta) * (-g_a) / jnp.where(g_b - g_a > 0, g_b - g_a, 1.0)
     guess = jnp.clip(guess, ta, tb)
     _, hi, _, _, _ = jax.lax.while_loop(cond, body, (ta, tb, guess, 0, jnp.zeros((), bool)))

@@ -25,7 +25,6 @@ import optimistix as optx
 from .._core.checks import is_traced
 from .._core.status import Status, from_diffrax
 from .._systems.base import is_hybrid
-from .flights import in_closed_form
 from .simulate import _resolve_solver
 from .stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
 from .unrolled import unrolled
@@ -193,7 +192,7 @@ def _hybrid(dyn, x0, t0, t1, ts, cfg):
                         rtol=cfg.rtol * cfg.tol_factors[0], atol=cfg.atol * cfg.tol_factors[1],
                         max_steps=cfg.max_steps, scale=state_scale(system, forcing),
                         max_segments=max_segments(cfg),
-                        closed_form=cfg.closed_form and in_closed_form(system, forcing))
+                        closed_form=cfg.closed_form)
 
 
 def flat_inputs(primals, tangents):

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import optimistix as optx
 
 from .._core.status import Status, from_diffrax
-from .flights import closed_form_segment
+from .flights import closed_form_segment, in_closed_form
 from .rootfind import AbstractWrappedRootFinder
 
 # segments allowed per forcing period (stick–slip has 2 to 4; more means chattering)
@@ -98,7 +98,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
 
     ``closed_form``: each segment's flight by the matrix exponential of its affine mode
     (``_integration.flights``; ``solver``, ``rtol`` and ``atol`` then unused) instead of a
-    diffrax solve."""
+    diffrax solve, where ``in_closed_form`` allows it (else ignored)."""
 
     def rate(t, x, mode):
         return system.mode_rate(t, x * scale, forcing, mode) / scale
@@ -154,10 +154,9 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
             ys = jnp.where(in_seg[:, None], sol.ys[1], ys)
         return t_end, x_end, hit, st, sol.stats["num_steps"], ys
 
-    if closed_form:
+    if closed_form and in_closed_form(system, forcing):
         segment = closed_form_segment(system, forcing, scale, t0b, t1, ts,
-                                      system.event_step_limit(forcing), max_steps,
-                                      lambda t, x, mode: switch(t, x, mode),
+                                      system.event_step_limit(forcing), max_steps, switch,
                                       jnp.zeros_like(mode0))
     else:
         segment = diffrax_segment

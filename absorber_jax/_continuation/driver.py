@@ -40,7 +40,7 @@ from .constants import (
     RESECTION_TANGENT,
 )
 from .events import _events, _g
-from .problem import _corrector, _defect, _jacobian, _Problem, _scale_at
+from .problem import _corrector, _defect, _jacobian, _Problem
 from .sequence import (
     event_log,
     sequence_of,
@@ -64,14 +64,15 @@ class _Driver:
                                       self.method.tol, self.method.newton_steps,
                                       jnp.asarray(patient)))
 
-    def point(self, z, t, ss, sec):
+    def point(self, z, t, ss, sec, sc):
         """A corrector's output as a branch point (numpy): ``xi`` its internal state on the
-        driver's section, ``x0`` at ``t = 0``, ``sec`` its ``Section``."""
+        driver's section, ``x0`` at ``t = 0``, ``sec`` its ``Section``, ``sc`` the state
+        scale at its parameter value."""
         ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
         z = np.asarray(z)
         return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, xi=z[:-1] * np.asarray(self.prob.s0),
                     x0=sec.at_zero, mult=np.asarray(ss.multipliers),
-                    ok=int(ss.status) == Status.SUCCESS)
+                    ok=int(ss.status) == Status.SUCCESS, sc=np.asarray(sc))
 
     def resection(self, point):
         """Move the branch's Poincaré section to where the orbit at ``point`` flies farthest
@@ -111,7 +112,7 @@ class _Driver:
         the orbit's size, as it grows through a resonance.  The compiled corrector is
         reused (the scale is an array input).  Returns ``point`` in the new unknowns."""
         s_old = np.asarray(self.prob.s0)
-        sc = np.asarray(_scale_at(self.prob, jnp.asarray(point["z"][-1])))
+        sc = point["sc"]
         s_new = sc * max(1.0, float(np.max(np.abs(point["xi"] / sc))))
         self.prob = eqx.tree_at(lambda q: q.s0, self.prob, jnp.asarray(s_new))
         z = np.append(point["xi"] / s_new, point["z"][-1])

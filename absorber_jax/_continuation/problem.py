@@ -175,8 +175,8 @@ def bordered_newton(evaluate, z_pred, t_prev, tol, newton_steps, patient, *,
 def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     """``bordered_newton`` on the shooting residual ``Φ(z) - x`` from ``z_pred``; returns the
     point, the new tangent, the point's ``SteadyState`` (its iterations included, its
-    multipliers the eigenvalues of the last Jacobian's state block plus the identity) and
-    its ``Section``.
+    multipliers the eigenvalues of the last Jacobian's state block plus the identity), its
+    ``Section`` and the state scale at its parameter value.
 
     Every Jacobian is integrated with steps controlled on the tangents too
     (``_integration.flow.accurate_tangents``): forward mode through steps chosen for the
@@ -194,7 +194,7 @@ def _corrector(prob, z_pred, t_prev, tol, newton_steps, patient=False):
     sc = state_scale(sysp, forcp)
     ss, sec = finish_orbit(sysp, forcp, z[:-1] * prob.s0 / sc, prob.n, prob.cfg, status, res, k,
                       n_cap=prob.n, multipliers=mult, section=prob.section)
-    return z, t, ss, sec
+    return z, t, ss, sec, sc
 
 
 @eqx.filter_jit

@@ -36,9 +36,11 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import jax.scipy.linalg
 import numpy as np
 
 from .._core.status import Status
+from .._integration.flights import augmented_state, in_closed_form, mode_matrix
 from .._integration.flow import Config, state_scale
 from .._integration.stickslip import hybrid_solve
 
@@ -67,7 +69,15 @@ def event_log(system, forcing, x, t1, cfg: Config):
 
 
 def _flow(system, forcing, scale, x, ta, tb, mode, solver, max_steps):
-    """Scaled state ``x`` at ``ta`` carried to ``tb`` in ``mode`` (no events)."""
+    """Scaled state ``x`` at ``ta`` carried to ``tb`` in ``mode`` (no events): the matrix
+    exponential of the affine mode where the flights are in closed form
+    (``_integration.flights``; ``solver=None``), else a diffrax solve."""
+    if solver is None:
+        A = mode_matrix(system, forcing, mode, scale, ta)
+        z = augmented_state(x, forcing, ta)
+        y = (jax.scipy.linalg.expm(A * (tb - ta)) @ z)[:x.shape[0]]
+        return y, jnp.all(jnp.isfinite(y))
+
     def rate(tau, y, args):
         return (tb - ta) * system.mode_rate(ta + tau * (tb - ta), y * scale, forcing,
                                             mode) / scale
@@ -119,8 +129,11 @@ def solve_sequence(system, forcing, n, u0, modes, active, cfg: Config):
     the response period (dimensionless; positive: the switch crossed upwards, as the hybrid
     integration sees it)."""
 
+    # flights in closed form where the configuration allows them (solver None)
+    solver = None if cfg.closed_form and in_closed_form(system, forcing) else cfg.solver
+
     def f(u, with_rates=False):
-        r, (fine, gdot) = _residual(u, system, forcing, n, modes, active, cfg.solver,
+        r, (fine, gdot) = _residual(u, system, forcing, n, modes, active, solver,
                                     SEGMENT_STEPS, with_rates)
         return r, (r, fine, gdot)
 

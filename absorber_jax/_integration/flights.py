@@ -46,8 +46,10 @@ are taken from ``mode_rate`` by forward-mode AD with the forcing's value as an i
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
+import jax.scipy.linalg
 
 from .._core.status import Status
 from .._systems.forcing import AbstractForcing, AbstractPeriodicForcing
@@ -173,12 +175,16 @@ def _sg(x):
     return jax.lax.stop_gradient(x)
 
 
-def closed_form_segment(system, forcing, scale, t0, t1, ts, h_max, max_nodes, switch,
-                        free_mode):
+def _values(tree):
+    """``tree`` with its arrays' tangents stopped (other leaves as they are)."""
+    return jax.tree_util.tree_map(lambda a: _sg(a) if eqx.is_array(a) else a, tree)
+
+
+def closed_form_segment(system, forcing, scale, t0, t1, ts, h_max, max_nodes, free_mode):
     """The segment function of ``hybrid_solve`` for systems with affine modes: from scaled
-    state ``x`` at time ``t`` [s] in ``mode`` to the first upward crossing of
-    ``switch(t, x, mode)`` past its start value ``start`` (or to ``t1``), the save times
-    ``ts`` it passes written into ``ys``.
+    state ``x`` at time ``t`` [s] in ``mode`` to the first upward crossing of the switching
+    function ``system.switch_function`` past its start value ``start`` (or to ``t1``), the
+    save times ``ts`` it passes written into ``ys``.
 
     Returns ``(t_end, x_end, hit, status, nodes, ys)``: the located event time (no
     tangent) or ``t1``; the state there with its tangent at fixed time; whether an event
@@ -186,27 +192,92 @@ def closed_form_segment(system, forcing, scale, t0, t1, ts, h_max, max_nodes, sw
     ``t0 + j h`` of the whole integration (``h``: ``h_max`` divided by the smallest
     integer that bounds ``‖Â h‖∞``), so that save times on that grid are nodes.
     ``max_nodes``: the node budget of one segment.  The node operators of ``free_mode``
-    (every contact open, the commonest) are computed once per integration."""
+    (every contact open, the commonest) are computed once per integration.
+
+    Without save times (a period map, shooting's and continuation's Jacobians) the
+    segment carries a custom JVP (``_flight``): the windows run on values alone and the
+    tangent is that of ``e^{Â τ} z`` over the segment's duration ``τ``, one exponential
+    and its Fréchet derivative, instead of forward mode through every window."""
+    grid = (_sg(t0), _sg(t1), _sg(h_max))
+    if ts is None:
+        free = _operators(*_values((system, forcing)), free_mode, grid)
+
+        def run(t, x, mode, ys, start):
+            return _flight(system, forcing, scale, x, t, mode, start, free, grid,
+                           max_nodes=max_nodes) + (ys,)
+
+        return run
+    free = _operators(system, forcing, free_mode, grid)
+
+    def run(t, x, mode, ys, start):
+        return _windows(system, forcing, scale, x, t, mode, start, free, grid, max_nodes,
+                        ts, ys)
+
+    return run
+
+
+def _operators(system, forcing, mode, grid):
+    """``Â`` of ``mode`` on the system's own state scale, the node spacing ``h`` and the
+    node operators ``I, E, …, E^(NODES-1)``, ``E = e^{Âh}``."""
+    t0b, _, h_max = grid
+    A = mode_matrix(system, forcing, mode, system.state_scale(forcing), t0b)
+    norm = _sg(jnp.max(jnp.sum(jnp.abs(A), axis=1)))
+    h = h_max / jnp.maximum(jnp.ceil(norm * h_max / NORM_BOUND), 1.0)
+    E = expm_small(A * h)
+    P = jnp.concatenate([jnp.eye(E.shape[0], dtype=E.dtype)[None],
+                         _powers(E, NODES)[:-1]], axis=0)
+    return A, h, P
+
+
+@eqx.filter_custom_jvp
+def _flight(system, forcing, scale, x, t, mode, start, free, grid, *, max_nodes):
+    """``_windows`` without save times: ``(t_end, x_end, hit, status, nodes)``; its JVP
+    (``_flight_jvp``) is that of the exact flow over the segment."""
+    return _windows(system, forcing, scale, x, t, mode, start, free, grid, max_nodes, None,
+                    None)[:5]
+
+
+@_flight.def_jvp
+def _flight_jvp(primals, tangents, *, max_nodes):
+    r"""The segment's state at its located time ``t_end`` (held fixed: ``hybrid_solve``
+    adds the event time's own tangent) is ``x_end = [e^{Â τ} z(x)]_{1..n}``, ``τ = t_end -
+    t``, ``z(x)`` the augmented start state; its tangent in the state, the system and the
+    forcing is the JVP of that expression (``jax.scipy.linalg.expm`` differentiates by the
+    Fréchet derivative of the exponential, Van Loan's block matrix).  Neither the start time
+    nor the located time carries a tangent."""
+    system, forcing, scale, x, t, mode, start, free, grid = primals
+    out = _flight(*primals, max_nodes=max_nodes)
+    tau = _sg(out[0] - t)
+    t_b, mode_b = _sg(t), _sg(mode)
+    n = x.shape[0]
+
+    def exact(system, forcing, scale, x):
+        nat = system.state_scale(forcing)
+        ratio = scale / nat
+        A = mode_matrix(system, forcing, mode_b, nat, t_b)
+        z = augmented_state(x * ratio, forcing, t_b)
+        return (jax.scipy.linalg.expm(A * tau) @ z)[:n] / ratio
+
+    _, dx_end = eqx.filter_jvp(exact, (system, forcing, scale, x), tangents[:4])
+    return out, (None, dx_end, None, None, None)
+
+
+def _windows(system, forcing, scale, x, t, mode, start, free, grid, max_nodes, ts, ys):
+    """The closed-form segment (``closed_form_segment``) from ``x`` at ``t`` in ``mode``,
+    window after window of ``NODES`` nodes; ``free``: the all-open mode's operators
+    (``_operators``); ``grid``: ``(t0, t1, h_max)``, no tangents."""
     n = scale.shape[0]
+    t0b, t1b, _ = grid
+    free_mode = jnp.zeros_like(mode)
     # the flights run on the system's own state scale (‖Â‖ then ~ the motion's rates,
     # whatever the caller's scale)
     nat = system.state_scale(forcing)
     ratio = scale / nat
     ts_b = None if ts is None else _sg(ts)
     slots = NODES
-    t0b, t1b = _sg(t0), _sg(t1)
 
-    def operators(mode):
-        """``Â``, the node spacing ``h`` and ``I, E, …, E^(NODES-1)`` of ``mode``."""
-        A = mode_matrix(system, forcing, mode, nat, t0b)
-        norm = _sg(jnp.max(jnp.sum(jnp.abs(A), axis=1)))
-        h = h_max / jnp.maximum(jnp.ceil(norm * h_max / NORM_BOUND), 1.0)
-        E = expm_small(A * h)
-        P = jnp.concatenate([jnp.eye(E.shape[0], dtype=E.dtype)[None],
-                             _powers(E, NODES)[:-1]], axis=0)
-        return A, h, P
-
-    free = operators(free_mode)
+    def switch(tt, xx, mm):
+        return system.switch_function(tt, xx * scale, forcing, mm)
 
     def near(z, d, A, h):
         """``e^{A d} z``: one first-order step where ``|d|`` is a rounding of the node grid,
@@ -216,7 +287,7 @@ def closed_form_segment(system, forcing, scale, t0, t1, ts, h_max, max_nodes, sw
 
     def run(t, x, mode, ys, start):
         A, h, P = jax.lax.cond(jnp.all(mode == free_mode), lambda: free,
-                               lambda: operators(mode))
+                               lambda: _operators(system, forcing, mode, grid))
         A_b = _sg(A)
 
         def g_of(tt, z):
@@ -309,7 +380,7 @@ def closed_form_segment(system, forcing, scale, t0, t1, ts, h_max, max_nodes, sw
                            jnp.where(found | at_end, Status.SUCCESS, Status.MAX_STEPS))
         return t_end, z_end[:n] / ratio, found, status, nodes, ys
 
-    return run
+    return run(t, x, mode, ys, start)
 
 
 def _samples(A, ys, ts_b, i0, tw, zw, tn, Z, j_last, t_stop, final, h, ratio):

@@ -156,7 +156,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
 
     if closed_form and in_closed_form(system, forcing):
         segment = closed_form_segment(system, forcing, scale, t0b, t1, ts,
-                                      system.event_step_limit(forcing), max_steps, switch,
+                                      system.event_step_limit(forcing), max_steps,
                                       jnp.zeros_like(mode0))
     else:
         segment = diffrax_segment

@@ -110,14 +110,20 @@ def _diffeqsolve(rate, x0, t0, t1, ts, cfg, norm=optx.rms_norm):
     return sol.ys, from_diffrax(sol.result)
 
 
-def integrate(dyn, x0, t0, t1, ts, cfg):
+def integrate(dyn, x0, t0, t1, ts, cfg, counts=False):
     """Scaled states of ``dyn`` from ``x0`` at ``t0`` saved at ``ts`` (or at ``t1`` only when
     ``ts`` is None), and the status: smooth systems by one diffrax solve, hybrid ones
-    (exact stick–slip) segment by segment (``_integration.stickslip``)."""
+    (exact stick–slip) segment by segment (``_integration.stickslip``).  ``counts``: also
+    the impacts and the time [s] a contact is held closed, counted at the events of the
+    same integration (zeros for a smooth system)."""
     system, forcing = dyn
     if is_hybrid(system):
         # vmapped, lane by lane (see lane_by_lane): the lanes' event sequences differ
-        return lane_by_lane(_hybrid_states)(dyn, x0, t0, t1, ts, cfg)
+        out = lane_by_lane(_hybrid_states)(dyn, x0, t0, t1, ts, cfg)
+        return out if counts else out[:2]
+    if counts:
+        ys, status = integrate(dyn, x0, t0, t1, ts, cfg)
+        return ys, status, _no_counts(ys)
     if large_state(system):
         # run lane by lane, a large state's plain integrations pay diffrax's per-stage loop
         # bookkeeping in full (vmapped lanes share it): unrolled stages, the same steps and
@@ -129,11 +135,17 @@ def integrate(dyn, x0, t0, t1, ts, cfg):
     return _diffeqsolve(lambda t, x, a: _scaled_rate(dyn, t, x), x0, t0, t1, ts, cfg)
 
 
+def _no_counts(ys):
+    return jnp.zeros((), int), jnp.zeros((), ys.dtype)
+
+
 @eqx.filter_custom_jvp
-def integrate_flow(dyn, x0, t1, ts, *, cfg):
+def integrate_flow(dyn, x0, t1, ts, *, cfg, counts=False):
     """Scaled states of ``dyn = (system, forcing)`` from ``x0`` at ``t = 0`` saved at ``ts``
     (or at ``t1`` only when ``ts`` is None), and the integrator's status; differentiable in
     forward *and* reverse mode (``jax.jacfwd``, ``jax.linearize``, ``jax.grad``).
+    ``counts``: also ``(impacts, time in contact [s])`` counted at the events of the same
+    integration (``event_counts``; no derivative).
 
     Derivatives are forward sensitivities (through diffrax ``ForwardMode``, or by
     ``_sensitivity_jacobian``) with respect to the inputs
@@ -143,7 +155,7 @@ def integrate_flow(dyn, x0, t1, ts, *, cfg):
     (one integration carrying ``len(x0) + #parameters`` tangents), with no backward
     integration or checkpointing, and reverse mode gives the same numbers as forward mode.
     """
-    return integrate(dyn, x0, 0.0, t1, ts, cfg)
+    return integrate(dyn, x0, 0.0, t1, ts, cfg, counts)
 
 
 def integrate_periods(dyn, x0, t0, period, count, cfg):
@@ -167,21 +179,20 @@ def integrate_periods(dyn, x0, t0, period, count, cfg):
 
 
 def _hybrid_states(dyn, x0, t0, t1, ts, cfg):
-    """``integrate``'s hybrid states and status (no lane-by-lane wrapper: for the
-    derivatives, which ``_flow_jvp`` runs lane by lane as a whole)."""
-    ys, x, status, _, _, _ = _hybrid(dyn, x0, t0, t1, ts, cfg)
-    return (x[None] if ts is None else ys), status
+    """``integrate``'s hybrid states, status and event counts (no lane-by-lane wrapper: for
+    the derivatives, which ``_flow_jvp`` runs lane by lane as a whole)."""
+    ys, x, status, _, _, counted = _hybrid(dyn, x0, t0, t1, ts, cfg)
+    return (x[None] if ts is None else ys), status, counted
 
 
 def event_counts(dyn, x0, t1, cfg):
     """Impacts and the time [s] a contact is held closed, from scaled state ``x0`` at
     ``t = 0`` to ``t1``, counted at the events of a hybrid system (rigid impacts happen at
     instants that no sampling of the orbit resolves); no derivatives."""
-    def counts(dyn, x0, t1, cfg):
-        _, _, _, _, _, out = _hybrid(dyn, x0, 0.0, t1, None, cfg)
-        return out
+    def counted(dyn, x0, t1, cfg):
+        return _hybrid_states(dyn, x0, 0.0, t1, None, cfg)[2]
 
-    return lane_by_lane(counts)(*jax.lax.stop_gradient((dyn, x0, t1)), cfg)
+    return lane_by_lane(counted)(*jax.lax.stop_gradient((dyn, x0, t1)), cfg)
 
 
 def _hybrid(dyn, x0, t0, t1, ts, cfg):
@@ -230,11 +241,12 @@ def _flat_active(primals, active):
 
 
 @integrate_flow.def_jvp
-def _flow_jvp(primals, tangents, *, cfg):
+def _flow_jvp(primals, tangents, *, cfg, counts=False):
     is_none = lambda a: a is None  # noqa: E731
     dyn, x0, t1, ts = primals
+    no_tangent = (None, None) + (((None, None),) if counts else ())
     if all(t is None for t in jax.tree_util.tree_leaves(tangents, is_leaf=is_none)):
-        return integrate(dyn, x0, 0.0, t1, ts, cfg), (None, None)
+        return integrate(dyn, x0, 0.0, t1, ts, cfg, counts), no_tangent
     # Smooth systems: a Jacobian in the system, forcing and initial state; the save times
     # (they move with the forcing period) add the flow's rate there.  They are not input
     # directions of the Jacobian: sampling an orbit at 256 times whose tangent is the
@@ -258,6 +270,7 @@ def _flow_jvp(primals, tangents, *, cfg):
             if large_state(dyn[0]):
                 sensitivities = lane_by_lane(sensitivities)
             jac, (ys, status) = sensitivities(primals[:k], t1, ts)
+            counted = _no_counts(ys)
         else:
             # through the explicit solver's steps (diffrax ForwardMode, one solve for all
             # directions)
@@ -267,22 +280,23 @@ def _flow_jvp(primals, tangents, *, cfg):
                 def states(v):
                     dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
                     if hybrid:
-                        ys, status = _hybrid_states(dyn_, x0_, 0.0, t1_, ts_, cfg)
+                        ys, status, counted = _hybrid_states(dyn_, x0_, 0.0, t1_, ts_, cfg)
                     else:
-                        ys, status = integrate(dyn_, x0_, 0.0, t1_, ts_, cfg)
-                    return ys, (ys, status)
+                        ys, status, counted = integrate(dyn_, x0_, 0.0, t1_, ts_, cfg, True)
+                    return ys, (ys, status, jax.lax.stop_gradient(counted))
 
                 return jax.jacfwd(states, has_aux=True)(vec)
 
             # hybrid systems' lanes each follow their own events (see lane_by_lane)
-            jac, (ys, status) = (lane_by_lane(jacobian) if hybrid else jacobian)(primals, cfg)
+            jac, (ys, status, counted) = (lane_by_lane(jacobian) if hybrid
+                                          else jacobian)(primals, cfg)
         # an integration gone wrong (at a trial Newton iterate, say) gives no derivative
         # rather than a non-finite one: the status flags the point, and the linear solves
         # downstream (lineax raises on NaN even with throw=False) see finite input
         jac = jnp.where(jnp.isfinite(jac), jac, 0.0)
         dys = jnp.tensordot(jac, t_vec, axes=1)
     else:
-        ys, status = integrate(dyn, x0, 0.0, t1, ts, cfg)
+        ys, status, counted = integrate(dyn, x0, 0.0, t1, ts, cfg, True)
         dys = jnp.zeros_like(ys)
     if hybrid:
         dt = None if ts is None else tangents[3]
@@ -293,6 +307,8 @@ def _flow_jvp(primals, tangents, *, cfg):
         rate = _mode_rate if hybrid else _scaled_rate
         f = jax.vmap(lambda t, x: rate(dyn, t, x))(t_save, ys)
         dys = dys + jnp.where(jnp.isfinite(f), f, 0.0) * jnp.reshape(dt, (-1, 1))
+    if counts:
+        return (ys, status, counted), (dys, None, (None, None))
     return (ys, status), (dys, None)
 
 

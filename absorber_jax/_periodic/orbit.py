@@ -171,18 +171,20 @@ def has_rigid_walls(system):
     return is_hybrid(system) and system.penetrations(system.rest_state()).shape[0] > 0
 
 
-def contact_statistics(system, forcing, x0, s, n, cfg, n_cap=1, *, cyclic=True):
+def contact_statistics(system, forcing, x0, s, n, cfg, n_cap=1, *, cyclic=True, counted=None):
     """Impacts per forcing period and the fraction of time a contact is closed over the
     ``n`` forcing periods from scaled state ``x0`` sampled as internal states ``s``: from
     the samples' penetrations (``cyclic``: around a closed orbit), or (rigid impacts)
-    counted at the events."""
+    counted at the events (``counted``: ``(impacts, time closed [s])`` from the samples'
+    own integration, else integrated again)."""
     pen = jax.vmap(system.penetrations)(s)                            # (N, walls)
     if pen.shape[1] == 0:
         zero = jnp.zeros((), s.dtype)
         return zero, zero
     if has_rigid_walls(system):
         T = 2 * jnp.pi / forcing.omega
-        impacts, closed = event_counts((system, forcing), x0, n * T, cfg.over_periods(n_cap))
+        impacts, closed = (event_counts((system, forcing), x0, n * T, cfg.over_periods(n_cap))
+                           if counted is None else counted)
         return (impacts / n).astype(s.dtype), closed / (n * T)
     closed = jnp.any(pen > 0, axis=1)
     return (closures(pen, cyclic=cyclic) / n).astype(s.dtype), jnp.mean(closed.astype(s.dtype))
@@ -192,15 +194,18 @@ def sample_orbit(system, forcing, x0, n, cfg, n_cap=1, *, with_end=False):
     """Internal states ``s`` at ``SAMPLES_PER_PERIOD · n_cap`` uniform times ``ts`` over one
     response period ``nT`` from scaled state ``x0``, and the integrator's status; with
     ``with_end``, also the scaled state at ``nT`` from the same integration (the period
-    map, for the residual: the steps are the same, the samples are interpolated)."""
+    map, for the residual: the steps are the same, the samples are interpolated) and, for
+    rigid walls, the impacts and time in contact counted at its events (else None)."""
     scale = state_scale(system, forcing)
     T = 2 * jnp.pi / forcing.omega
     N = SAMPLES_PER_PERIOD * n_cap
     ts = jnp.arange(N) * (n * T / N)
     if with_end:
-        ys, st = integrate_flow((system, forcing), x0, n * T, jnp.append(ts, n * T),
-                       cfg=cfg.over_periods(n_cap))
-        return ys[:-1] * scale, ts, st, ys[-1]
+        rigid = has_rigid_walls(system)
+        out = integrate_flow((system, forcing), x0, n * T, jnp.append(ts, n * T),
+                             cfg=cfg.over_periods(n_cap), counts=rigid)
+        ys, st = out[:2]
+        return ys[:-1] * scale, ts, st, ys[-1], (out[2] if rigid else None)
     ys, st = integrate_flow((system, forcing), x0, n * T, ts, cfg=cfg.over_periods(n_cap))
     return ys * scale, ts, st
 
@@ -210,17 +215,17 @@ def orbit_statistics(system, forcing, x0, n, cfg, n_cap=1):
     (``n`` may be traced; ``n_cap`` is its static upper bound), the integrator's status, the
     largest stroke per absorber, the scaled state at ``nT`` and the internal states sampled
     (``sample_orbit``)."""
-    s, ts, st, end = sample_orbit(system, forcing, x0, n, cfg, n_cap, with_end=True)
-    stats, stroke_max = sample_statistics(system, forcing, s, ts, x0, n, cfg, n_cap)
+    s, ts, st, end, counted = sample_orbit(system, forcing, x0, n, cfg, n_cap, with_end=True)
+    stats, stroke_max = sample_statistics(system, forcing, s, ts, x0, n, cfg, n_cap, counted)
     return stats, st, stroke_max, end, s
 
 
-def sample_statistics(system, forcing, s, ts, x0=None, n=1, cfg=None, n_cap=1):
+def sample_statistics(system, forcing, s, ts, x0=None, n=1, cfg=None, n_cap=1, counted=None):
     """The statistics of an orbit from its internal states ``s`` at uniform times ``ts``
     over one response period ``nT`` (amplitudes of the observable, outputs and strokes,
     contacts: see ``SteadyState``), and the largest stroke per absorber.  ``x0`` and
     ``cfg``: the scaled state at ``t = 0`` and the integrator, needed only to count rigid
-    impacts at their events."""
+    impacts at their events (unless ``counted`` gives them, see ``contact_statistics``)."""
     phase = jnp.exp(-1j * forcing.omega * ts)
 
     def stats_of(y):
@@ -231,7 +236,8 @@ def sample_statistics(system, forcing, s, ts, x0=None, n=1, cfg=None, n_cap=1):
     u = jax.vmap(system.strokes)(s)                                   # (N, absorbers)
     u_amp, u_rms, _ = jax.vmap(stats_of, in_axes=1)(u)
     most = (lambda a: jnp.max(a)) if u.shape[1] else (lambda a: jnp.zeros((), s.dtype))
-    impacts, contact = contact_statistics(system, forcing, x0, s, n, cfg, n_cap)
+    impacts, contact = contact_statistics(system, forcing, x0, s, n, cfg, n_cap,
+                                          counted=counted)
     stats = dict(amplitude=amp, rms=rms, harmonic=harm, absorber_amplitude=most(u_amp),
                  absorber_rms=most(u_rms), impacts=impacts, contact_fraction=contact,
                  dof_amplitude=d_amp, dof_rms=d_rms, dof_harmonic=d_harm)

@@ -17,7 +17,11 @@ Scenes:
 - **band**: the hard scene's band 20–45 rad/s by ``band_continuation`` at its defaults,
   both routes, each run twice (the second compiled).
 
-    python scripts/benchmark_rigid_impacts.py [--parts building,hard,band] [--out FILE]
+    python scripts/benchmark_rigid_impacts.py [--parts building,hard,band] [--devices N]
+                                              [--out FILE]
+
+``--devices N``: both routes on N CPU devices (``aj.use_cpu_cores(N)``; default one): the
+batched correctors of ``band_continuation`` split their lanes over them.
 
 Prints each result as it comes; ``--out`` appends them to FILE
 (docs/benchmark_rigid_impacts.txt holds the last run).
@@ -139,7 +143,11 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--parts", default="building,hard,band")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--devices", type=int, default=1)
     a = ap.parse_args()
+    if a.devices > 1:
+        aj.use_cpu_cores(a.devices)
+        report(f"[setup] {a.devices} CPU devices")
     if "building" in a.parts:
         sweep_building()
     if "hard" in a.parts:

@@ -16,6 +16,7 @@ import numpy as np
 from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
 from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
+from .._integration.flights import in_closed_form
 from .._integration.flow import event_counts, integrate_flow, make_config, state_scale
 from .._periodic.orbit import finish_orbit, free_flight_apexes, has_rigid_walls, wall_kinematics
 from .._systems.base import is_hybrid
@@ -225,7 +226,7 @@ def _close_returns(drivers, z0s, periods=CLOSE_RETURN_PERIODS, count=CLOSE_RETUR
     prob = drivers[0].prob
     k = len(drivers)
     size = max(k, lanes or k)
-    parts = 1 if is_hybrid(prob.system) else device_parts(size)
+    parts = device_parts(size) if _split_lanes(prob) else 1
     at, slot, live = _placed(k, size, parts)
     s0 = np.stack([np.asarray(d.prob.s0) for d in drivers])
     z = np.stack(z0s)
@@ -421,6 +422,15 @@ def _run(gen):
         return stop.value
 
 
+def _split_lanes(prob):
+    """Whether a batch's lanes may be split over the local devices (``lanes_on_devices``):
+    not for event-driven systems whose flights diffrax integrates (the implicit derivative
+    of its event location fails to trace inside ``shard_map``); smooth systems and flights
+    in closed form (``_integration.flights``) may."""
+    system, forcing = prob.system, prob.forcing
+    return not is_hybrid(system) or (prob.cfg.closed_form and in_closed_form(system, forcing))
+
+
 @eqx.filter_jit
 def _corrector_many(prob, s0, section, z_pred, t_prev, patient, live, tol, newton_steps,
                     ndev=1):
@@ -464,10 +474,13 @@ def _run_batched(gens, prob, method, lanes=None):
     One SPMD program traces the corrector's Jacobian integration once, where a program per
     device traces it per device (the first 16-lane call: 6.6 s against 10.8 s).
 
-    Event-driven (hybrid) systems run their lanes one after the other on one device
-    (``lanes_on_devices``), the padding lanes skipped, in batches of ``lanes`` alone: the
-    hard rigid band of scripts/benchmark_rigid_impacts.py ran 12016 lanes for 1840
-    requests, in 20 s where the padding, computed, had cost 45 s."""
+    Event-driven (hybrid) systems run their lanes one after the other (``lanes_on_devices``),
+    the padding lanes skipped, in batches of ``lanes`` alone: the hard rigid band of
+    scripts/benchmark_rigid_impacts.py ran 12016 lanes for 1840 requests, in 20 s where the
+    padding, computed, had cost 45 s.  Their lanes are split over the local devices where
+    their flights are in closed form (``_split_lanes``; on one device otherwise): that band
+    19.0 s compiled on two CPU devices against 24.9 s on one (a machine 2.5 times slower
+    than the other measurements here)."""
     lanes = len(gens) if lanes is None else lanes
     # the few branches snaking through folds, or locating bifurcations, go on for many more
     # rounds (the Kelvin–Voigt scene of scripts/benchmark_hard_contacts.py spent 39 of 55 s
@@ -479,6 +492,7 @@ def _run_batched(gens, prob, method, lanes=None):
     # lanes run one after the other (hybrid systems: see ``over_lanes``) skip the padding,
     # so one size serves: no second compilation
     serial = is_hybrid(prob.system)
+    split = _split_lanes(prob)
     sizes = [lanes] + ([lanes // 4] if lanes >= 8 and not serial else [])
     results = [None] * len(gens)
     pending = {}
@@ -490,7 +504,7 @@ def _run_batched(gens, prob, method, lanes=None):
     while pending:
         idx = list(pending)[:sizes[0]]          # more requests than lanes: the first ones
         size = min(z for z in sizes if z >= len(idx))
-        parts = 1 if serial else device_parts(size)
+        parts = device_parts(size) if split else 1
         at, slot, live = _placed(len(idx), size, parts)
         reqs = [pending[idx[k]] for k in slot]
         s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])

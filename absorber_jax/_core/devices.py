@@ -192,9 +192,10 @@ def lanes_on_devices(one, shared, *lanes, ndev, serial=False, live=None):
 
     ``serial``: each device runs its lanes one after the other (``over_lanes``), skipping
     those whose ``live`` flag (a boolean per lane, if given) is False.  Event-driven
-    integrations run on one device (``ndev=1``): their event location's implicit derivative
-    (optimistix, lineax) fails to trace inside ``shard_map``, its closure conversion cached
-    with the manual mesh's sharding and checked against shapes without it."""
+    integrations through diffrax run on one device (``ndev=1``): their event location's
+    implicit derivative (optimistix, lineax) fails to trace inside ``shard_map``, its
+    closure conversion cached with the manual mesh's sharding and checked against shapes
+    without it; flights in closed form (``_integration.flights``) have none."""
     masked = live is not None
     if masked:
         lanes = (live,) + lanes

@@ -34,11 +34,16 @@ located on the exact flow: a crossing there and back between two nodes (an excur
 through a wall near grazing) is an event, not missed.  Save times off the grid are reached
 from the node before them, ``e^{Â δ}`` with ``δ < h``.
 
-**Derivatives.**  Everything is written in JAX, so forward-mode AD differentiates the
-flow in the state, the parameters (through ``Â``) and the forcing; the event times are
-located on values without tangents, and the segment returns the state at the located
-time with its tangent at fixed time, which ``hybrid_solve`` turns into the saltation of
-the event (its module docstring).
+**Derivatives.**  The event times are located on values without tangents, and a segment
+returns the state at the located time with its tangent at fixed time, which
+``hybrid_solve`` turns into the saltation of the event (its module docstring).  Without
+save times (a period map: shooting's and continuation's Jacobians, Floquet multipliers)
+that tangent is the derivative of ``e^{Âτ} z`` over the segment's duration ``τ`` in the
+state, the parameters (through ``Â``) and the forcing, one exponential and its Fréchet
+derivative a segment (a custom JVP, ``_flight``); with save times, forward-mode AD
+differentiates the windows themselves.  On the hard scene's orbits the exponential's
+derivative is most of a Jacobian's cost (25 impacts a period: 4.3 ms against 1.4 ms with
+the tangents left out, the period map itself 1.2 ms).
 
 Systems declare such modes through ``AbstractHybridSystem.affine_modes``; the matrices
 are taken from ``mode_rate`` by forward-mode AD with the forcing's value as an input.

@@ -571,9 +571,9 @@ def test_energy_lost_in_sticking_and_chatter_is_newtons_loss_per_impact():
 
 def test_a_rigid_band_runs_on_two_cpu_devices():
     # band_continuation of an event-driven system in a process with two CPU devices (its
-    # batched correctors run their lanes one after the other on one device: the event
-    # location's implicit derivative does not trace inside shard_map); its points are the
-    # orbits steady_state finds in this process
+    # batched correctors' lanes split over both, each device running its lanes one after
+    # the other: flights in closed form); its points are the orbits steady_state finds in
+    # this process
     import json
     import os
     import subprocess

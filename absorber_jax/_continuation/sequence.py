@@ -36,11 +36,10 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg
 import numpy as np
 
 from .._core.status import Status
-from .._integration.flights import augmented_state, in_closed_form, mode_matrix
+from .._integration.flights import exact_flight, in_closed_form
 from .._integration.flow import Config, state_scale
 from .._integration.stickslip import hybrid_solve
 
@@ -73,9 +72,7 @@ def _flow(system, forcing, scale, x, ta, tb, mode, solver, max_steps):
     exponential of the affine mode where the flights are in closed form
     (``_integration.flights``; ``solver=None``), else a diffrax solve."""
     if solver is None:
-        A = mode_matrix(system, forcing, mode, scale, ta)
-        z = augmented_state(x, forcing, ta)
-        y = (jax.scipy.linalg.expm(A * (tb - ta)) @ z)[:x.shape[0]]
+        y = exact_flight(system, forcing, mode, scale, x, ta, tb - ta)
         return y, jnp.all(jnp.isfinite(y))
 
     def rate(tau, y, args):

@@ -115,6 +115,17 @@ def mode_matrix(system, forcing, mode, scale, t):
     return jnp.concatenate([top, lower], axis=0)
 
 
+def exact_flight(system, forcing, mode, scale, x, t, tau):
+    """Scaled state ``x`` (by ``scale``) at time ``t`` [s] carried ``tau`` [s] in the affine
+    ``mode`` with no event: ``e^{Âτ} z`` by ``jax.scipy.linalg.expm`` (differentiable in
+    everything, its derivative the exponential's Fréchet derivative)."""
+    nat = system.state_scale(forcing)
+    ratio = scale / nat
+    A = mode_matrix(system, forcing, mode, nat, t)
+    z = augmented_state(x * ratio, forcing, t)
+    return (jax.scipy.linalg.expm(A * tau) @ z)[:x.shape[0]] / ratio
+
+
 def augmented_state(x, forcing, t):
     """``z = (x, 1, cos k_jωt, sin k_jωt, …)`` at time ``t`` [s]."""
     orders, _ = forcing.harmonics()
@@ -254,14 +265,9 @@ def _flight_jvp(primals, tangents, *, max_nodes):
     out = _flight(*primals, max_nodes=max_nodes)
     tau = _sg(out[0] - t)
     t_b, mode_b = _sg(t), _sg(mode)
-    n = x.shape[0]
 
     def exact(system, forcing, scale, x):
-        nat = system.state_scale(forcing)
-        ratio = scale / nat
-        A = mode_matrix(system, forcing, mode_b, nat, t_b)
-        z = augmented_state(x * ratio, forcing, t_b)
-        return (jax.scipy.linalg.expm(A * tau) @ z)[:n] / ratio
+        return exact_flight(system, forcing, mode_b, scale, x, t_b, tau)
 
     _, dx_end = eqx.filter_jvp(exact, (system, forcing, scale, x), tangents[:4])
     return out, (None, dx_end, None, None, None)

@@ -517,7 +517,11 @@ def free_flight_apexes(pen, rate, acc, dt, length, speed, xp=np):
     ``length`` [m] and ``speed`` [m/s] scale that test) are not apexes.  Returns
     ``(is_apex, heights, times)`` per interval and wall ``(N, walls)``: the penetration [m]
     at the apex (at least the interval's ends) and its time [s] from the first sample."""
-    held = (xp.abs(rate) <= 1e-12 * speed) & (xp.abs(pen) <= 1e-10 * length)
+    rest = (xp.abs(rate) <= 1e-12 * speed) & (xp.abs(pen) <= 1e-10 * length)
+    # a hold lasts: a sample at rest on the wall is held where a neighbour is too (a grazing
+    # flight touches the wall at one instant, and its apex may fall on a sample)
+    none = xp.zeros_like(rest[:1])
+    held = rest & (xp.concatenate([none, rest[:-1]]) | xp.concatenate([rest[1:], none]))
     p0, p1, r0, r1 = pen[:-1], pen[1:], rate[:-1] * dt, rate[1:] * dt
     smooth = xp.abs(r1 - r0 - 0.5 * (acc[:-1] + acc[1:]) * dt**2) <= 0.1 * (r0 - r1)
     turn = (r0 > 0) & (r1 <= 0) & smooth & ~held[:-1] & ~held[1:]

@@ -295,3 +295,24 @@ def test_root_finders_return_their_best_iterate_at_a_noise_floor():
     x, k = _broyden(residual, y0, H0, None, 0.0, 30)
     assert int(k) == 30
     check(x, "broyden", wanders=False)
+
+
+def test_a_flight_whose_apex_falls_on_a_sample_at_the_wall_is_an_apex_not_a_hold():
+    # penetration -a (t - t5)²/2 sampled with its apex (zero, at rest) on sample 5: a grazing
+    # flight; three samples at rest on the wall in a row are a hold
+    from absorber_jax._periodic.orbit import free_flight_apexes
+
+    dt, a = 0.01, 2.0
+    t = np.arange(11) * dt
+    pen = (-0.5 * a * (t - t[5]) ** 2)[:, None]
+    rate = (-a * (t - t[5]))[:, None]
+    acc = np.full_like(pen, -a)
+    turn, heights, times = free_flight_apexes(pen, rate, acc, dt, 1.0, 1.0)
+    k = np.flatnonzero(turn[:, 0])
+    assert k.size == 1 and k[0] in (4, 5)
+    assert abs(heights[k[0], 0]) < 1e-15 and abs(times[k[0], 0] - t[5]) < 1e-12
+    held = pen.copy()
+    held[4:7], rate2 = 0.0, rate.copy()
+    rate2[4:7] = 0.0
+    turn, _, _ = free_flight_apexes(held, rate2, acc, dt, 1.0, 1.0)
+    assert not turn[3:7, 0].any()

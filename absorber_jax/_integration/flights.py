@@ -36,14 +36,14 @@ from the node before them, ``e^{Â δ}`` with ``δ < h``.
 
 **Derivatives.**  The event times are located on values without tangents, and a segment
 returns the state at the located time with its tangent at fixed time, which
-``hybrid_solve`` turns into the saltation of the event (its module docstring).  Without
-save times (a period map: shooting's and continuation's Jacobians, Floquet multipliers)
-that tangent is the derivative of ``e^{Âτ} z`` over the segment's duration ``τ`` in the
-state, the parameters (through ``Â``) and the forcing, one exponential and its Fréchet
-derivative a segment (a custom JVP, ``_flight``); with save times, forward-mode AD
-differentiates the windows themselves.  On the hard scene's orbits the exponential's
-derivative is most of a Jacobian's cost (25 impacts a period: 4.3 ms against 1.4 ms with
-the tangents left out, the period map itself 1.2 ms).
+``hybrid_solve`` turns into the saltation of the event (its module docstring).  With save
+times (orbit statistics) forward-mode AD differentiates the windows themselves.  Without
+(a period map: shooting's and continuation's Jacobians, Floquet multipliers) the windows
+run on values and the segment carries a custom JVP (``_flight``): the JVP of ``e^{Âτ} z``
+over the segment's duration ``τ``, by ``expm`` (its Fréchet derivative where the
+parameters carry tangents).  For a period map's derivative in the parameters,
+``flight_linearizations`` linearizes a batch of recorded segments at once (the replay of
+``stickslip.closed_form_jacobian``).
 
 Systems declare such modes through ``AbstractHybridSystem.affine_modes``; the matrices
 are taken from ``mode_rate`` by forward-mode AD with the forcing's value as an input.
@@ -54,7 +54,6 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg
 
 from .._core.status import Status
 from .._systems.forcing import AbstractForcing, AbstractPeriodicForcing
@@ -117,13 +116,96 @@ def mode_matrix(system, forcing, mode, scale, t):
 
 def exact_flight(system, forcing, mode, scale, x, t, tau):
     """Scaled state ``x`` (by ``scale``) at time ``t`` [s] carried ``tau`` [s] in the affine
-    ``mode`` with no event: ``e^{Âτ} z`` by ``jax.scipy.linalg.expm`` (differentiable in
-    everything, its derivative the exponential's Fréchet derivative)."""
+    ``mode`` with no event: ``e^{Âτ} z`` (``expm``; differentiable in everything, its
+    derivative the exponential's Fréchet derivative)."""
+    one = lambda v: jnp.asarray(v)[None]  # noqa: E731
+    return flight_linearizations(system, forcing, one(mode), scale, x[None], one(t),
+                                 one(tau))[0][0]
+
+
+def flight_linearizations(system, forcing, modes, scale, xs, ts, taus):
+    """Segments ``j`` (a batch: ``modes``, start states ``xs`` scaled by ``scale``, start
+    times ``ts`` [s], durations ``taus`` [s]) flown exactly: ``(xe, Phi)``, ``xe[j] =
+    e^{Âτ} z`` at the end of segment ``j`` (differentiable in everything: in the
+    parameters through ``Â``, the forcing and ``scale``) and ``Phi[j]`` its derivative in
+    the start state (a value), ``diag(1/r) [e^{Âτ}]_{1..n,1..n} diag(r)`` with ``r`` the
+    ratio of ``scale`` to the system's own state scale.  One batched exponential
+    (``expm``) serves the whole batch."""
+    n = xs.shape[-1]
     nat = system.state_scale(forcing)
     ratio = scale / nat
-    A = mode_matrix(system, forcing, mode, nat, t)
-    z = augmented_state(x * ratio, forcing, t)
-    return (jax.scipy.linalg.expm(A * tau) @ z)[:x.shape[0]] / ratio
+    A = jax.vmap(lambda m, t: mode_matrix(system, forcing, m, nat, t))(modes, ts)
+    E = jnp.moveaxis(expm(jnp.moveaxis(A * taus[:, None, None], 0, -1)), -1, 0)
+    z = jax.vmap(lambda x, t: augmented_state(x * ratio, forcing, t))(xs, ts)
+    r = _sg(ratio)
+    Phi = _sg(E[:, :n, :n]) * (r[None, :] / r[:, None])
+    return jnp.einsum("jkl,jl->jk", E[:, :n], z) / ratio, Phi
+
+
+def _products(A, B):
+    """The products of two batches of matrices stored batch last, ``(n, m, b)`` by ``(m,
+    p, b)``: sums of broadcast products, vectorized along the batch (XLA's batched dot
+    runs several times slower on such small matrices)."""
+    out = A[:, 0, None] * B[None, 0]
+    for k in range(1, A.shape[1]):
+        out = out + A[:, k, None] * B[None, k]
+    return out
+
+
+def _squarings(B):
+    """The squarings ``s`` (one per matrix of the batch ``B``, stored batch last) that
+    bring ``‖B / 2^s‖∞`` to ``NORM_BOUND`` or below."""
+    norm = _sg(jnp.max(jnp.sum(jnp.abs(B), axis=1), axis=0))
+    return jnp.maximum(jnp.ceil(jnp.log2(jnp.maximum(norm, 1e-300) / NORM_BOUND)), 0.0)
+
+
+def _squared(E, L, s):
+    """Each matrix of ``E`` squared ``s`` times, and its Fréchet derivative ``L`` carried
+    along (``(E, L) -> (E², E L + L E)``; ``L`` None: none)."""
+
+    def body(c):
+        i, E, L = c
+        more = i < s
+        E2 = jnp.where(more, _products(E, E), E)
+        if L is not None:
+            L = jnp.where(more, _products(E, L) + _products(L, E), L)
+        return i + 1, E2, L
+
+    c0 = (jnp.zeros((), s.dtype), E, L)
+    return jax.lax.while_loop(lambda c: c[0] < jnp.max(s), body, c0)[1:]
+
+
+def _eye(B):
+    return jnp.eye(B.shape[0], dtype=B.dtype)[:, :, None]
+
+
+@jax.custom_jvp
+def expm(B):
+    """``e^B`` for each matrix of the batch ``B`` (shape ``(n, n, b)``, batch last), of
+    any norm: the Taylor polynomial of ``e^{B/2^s}`` (``TAYLOR_ORDER``, Horner's scheme)
+    squared ``s`` times, ``s`` the least that brings ``‖B/2^s‖∞`` to ``NORM_BOUND`` (Moler
+    and Van Loan's scaling and squaring).  Its JVP is the Fréchet derivative ``L(B, dB)``
+    by the same recursion on the pair ``(E, L)``; batched over tangent directions
+    (``jax.vmap``) the exponential itself is computed once, ``L`` once a direction."""
+    s = _squarings(B)
+    Bc = B * 2.0 ** -s
+    E = jnp.broadcast_to(_eye(B), B.shape)
+    for m in range(TAYLOR_ORDER, 0, -1):
+        E = _eye(B) + _products(Bc / m, E)
+    return _squared(E, None, s)[0]
+
+
+@expm.defjvp
+def _expm_jvp(primals, tangents):
+    (B,), (dB,) = primals, tangents
+    s = _squarings(B)
+    c = 2.0 ** -s
+    Bc, dBc = B * c, dB * c
+    # Horner: E <- I + (Bc/m) E, so L <- (dBc E + Bc L)/m
+    E, L = jnp.broadcast_to(_eye(B), B.shape), jnp.zeros_like(dB)
+    for m in range(TAYLOR_ORDER, 0, -1):
+        E, L = _eye(B) + _products(Bc / m, E), (_products(dBc, E) + _products(Bc, L)) / m
+    return _squared(E, L, s)
 
 
 def augmented_state(x, forcing, t):
@@ -258,8 +340,8 @@ def _flight_jvp(primals, tangents, *, max_nodes):
     r"""The segment's state at its located time ``t_end`` (held fixed: ``hybrid_solve``
     adds the event time's own tangent) is ``x_end = [e^{Â τ} z(x)]_{1..n}``, ``τ = t_end -
     t``, ``z(x)`` the augmented start state; its tangent in the state, the system and the
-    forcing is the JVP of that expression (``jax.scipy.linalg.expm`` differentiates by the
-    Fréchet derivative of the exponential, Van Loan's block matrix).  Neither the start time
+    forcing is the JVP of that expression (``expm`` differentiates by the Fréchet derivative
+    of the exponential).  Neither the start time
     nor the located time carries a tangent."""
     system, forcing, scale, x, t, mode, start, free, grid = primals
     out = _flight(*primals, max_nodes=max_nodes)

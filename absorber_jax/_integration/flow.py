@@ -25,8 +25,9 @@ import optimistix as optx
 from .._core.checks import is_traced
 from .._core.status import Status, from_diffrax
 from .._systems.base import is_hybrid
+from .flights import in_closed_form
 from .simulate import _resolve_solver
-from .stickslip import SEGMENTS_PER_PERIOD, hybrid_solve
+from .stickslip import SEGMENTS_PER_PERIOD, closed_form_jacobian, hybrid_solve
 from .unrolled import unrolled
 
 # event-driven segments allowed in one integration of one forcing period (the loop ends at
@@ -228,7 +229,8 @@ def _flat_active(primals, active):
     p_leaves, p_def = jax.tree_util.tree_flatten(primals, is_leaf=is_none)
     shapes = [jnp.shape(p_leaves[i]) for i in active]
     sizes = [int(jnp.size(p_leaves[i])) for i in active]
-    vec = jnp.concatenate([jnp.ravel(jnp.asarray(p_leaves[i], dtype=float)) for i in active])
+    vec = jnp.concatenate([jnp.zeros((0,))]
+                          + [jnp.ravel(jnp.asarray(p_leaves[i], dtype=float)) for i in active])
 
     def rebuild(v):
         leaves, k = list(p_leaves), 0
@@ -287,6 +289,10 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
 
                 return jax.jacfwd(states, has_aux=True)(vec)
 
+            if hybrid and ts is None and _closed_form(dyn, cfg):
+                def jacobian(primals, cfg):
+                    return _closed_form_jacobian(primals, active, cfg)
+
             # hybrid systems' lanes each follow their own events (see lane_by_lane)
             jac, (ys, status, counted) = (lane_by_lane(jacobian) if hybrid
                                           else jacobian)(primals, cfg)
@@ -310,6 +316,34 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
     if counts:
         return (ys, status, counted), (dys, None, (None, None))
     return (ys, status), (dys, None)
+
+
+def _closed_form(dyn, cfg):
+    """Whether the hybrid integrations of ``dyn`` under ``cfg`` fly in closed form."""
+    return cfg.closed_form and in_closed_form(*dyn)
+
+
+def _closed_form_jacobian(primals, active, cfg):
+    """``_flow_jvp``'s Jacobian of a hybrid period map whose flights are in closed form
+    (``stickslip.closed_form_jacobian``): the system's and forcing's active leaves are the
+    parameters, the start state's and final time's the rest.  Returns ``(jac, (ys,
+    status, counts))`` as ``jacobian`` there."""
+    is_none = lambda a: a is None  # noqa: E731
+    dyn, x0, t1 = primals[:3]
+    n_dyn = len(jax.tree_util.tree_leaves(dyn, is_leaf=is_none))
+    p, rebuild_p = _flat_active(dyn, [i for i in active if i < n_dyn])
+    s, rebuild_s = _flat_active((x0, t1), [i - n_dyn for i in active if i >= n_dyn])
+
+    def make(p, s):
+        system, forcing = rebuild_p(p)
+        x0_, t1_ = rebuild_s(s)
+        return system, forcing, x0_, 0.0, t1_, state_scale(system, forcing)
+
+    J_p, J_s, out = closed_form_jacobian(make, p, s, max_nodes=cfg.max_steps,
+                                         max_segments=max_segments(cfg))
+    _, x, status, _, _, counted = out
+    jac = jnp.concatenate([J_p, J_s], axis=1)[None]
+    return jac, (x[None], status, jax.lax.stop_gradient(counted))
 
 
 # Explicit solvers on systems with at least this many states take their derivatives from

@@ -61,6 +61,8 @@ from .._systems.forcing import AbstractForcing, AbstractPeriodicForcing
 # Taylor degree of e^{Âh} with ‖Âh‖∞ <= NORM_BOUND: remainder <= 0.25^13/13! e^0.25 ~ 3e-18
 TAYLOR_ORDER = 12
 NORM_BOUND = 0.25
+# squarings of the scaled exponential at most (norms up to 0.25 * 2^64)
+MAX_SQUARINGS = 64
 # nodes per window (one batched product of the powers I, E, ..., E^(NODES-1)); a window
 # also ends at its NODES-th save time
 NODES = 32
@@ -154,9 +156,11 @@ def _products(A, B):
 
 def _squarings(B):
     """The squarings ``s`` (one per matrix of the batch ``B``, stored batch last) that
-    bring ``‖B / 2^s‖∞`` to ``NORM_BOUND`` or below."""
+    bring ``‖B / 2^s‖∞`` to ``NORM_BOUND`` or below; at most ``MAX_SQUARINGS`` (a
+    non-finite ``B`` gives a non-finite ``e^B``, not an endless loop)."""
     norm = _sg(jnp.max(jnp.sum(jnp.abs(B), axis=1), axis=0))
-    return jnp.maximum(jnp.ceil(jnp.log2(jnp.maximum(norm, 1e-300) / NORM_BOUND)), 0.0)
+    s = jnp.ceil(jnp.log2(jnp.maximum(norm, 1e-300) / NORM_BOUND))
+    return jnp.where(jnp.isnan(s), 0.0, jnp.clip(s, 0.0, MAX_SQUARINGS))
 
 
 def _squared(E, L, s):

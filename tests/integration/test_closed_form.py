@@ -136,14 +136,22 @@ def test_batched_exponential_and_its_frechet_derivative_match_scipy():
                                    atol=1e-12 * np.max(np.abs(E_ref)))
         np.testing.assert_allclose(np.asarray(L[..., j]), L_ref, rtol=0,
                                    atol=1e-11 * np.max(np.abs(L_ref)))
+    # a non-finite matrix gives a non-finite exponential (no endless squaring)
+    bad = np.stack([B[..., 3], np.full((7, 7), np.inf), np.full((7, 7), np.nan)], axis=-1)
+    E = np.asarray(expm(jnp.asarray(bad)))
+    assert np.all(np.isfinite(E[..., 0])) and not np.any(np.isfinite(E[..., 1:]))
 
 
 def test_jacobian_through_sticking_and_chatter_matches_central_differences():
     # a period of the orbit that chatters and sticks (e = 0.6 at 30 rad/s, held against a
     # wall part of the period): the Jacobian in the state and the frequency, the flights'
     # parameter directions replayed over the recorded segments, against central differences
-    from absorber_jax._integration.flow import event_counts, integrate_flow, make_config
-    from absorber_jax._integration.flow import state_scale
+    from absorber_jax._integration.flow import (
+        event_counts,
+        integrate_flow,
+        make_config,
+        state_scale,
+    )
 
     system = _absorber(0.6)
     f0 = aj.Harmonic(amplitude=3.0, omega=30.0)

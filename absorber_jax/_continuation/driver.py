@@ -16,8 +16,13 @@ import numpy as np
 from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
 from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
-from .._integration.flights import in_closed_form
-from .._integration.flow import event_counts, integrate_flow, make_config, state_scale
+from .._integration.flow import (
+    closed_form_flights,
+    event_counts,
+    integrate_flow,
+    make_config,
+    state_scale,
+)
 from .._periodic.orbit import finish_orbit, free_flight_apexes, has_rigid_walls, wall_kinematics
 from .._systems.base import is_hybrid
 from .branch import Bifurcation, Branch
@@ -428,7 +433,7 @@ def _split_lanes(prob):
     of its event location fails to trace inside ``shard_map``); smooth systems and flights
     in closed form (``_integration.flights``) may."""
     system, forcing = prob.system, prob.forcing
-    return not is_hybrid(system) or (prob.cfg.closed_form and in_closed_form(system, forcing))
+    return not is_hybrid(system) or closed_form_flights(system, forcing, prob.cfg)
 
 
 @eqx.filter_jit

@@ -39,8 +39,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.status import Status
-from .._integration.flights import exact_flight, in_closed_form
-from .._integration.flow import Config, state_scale
+from .._integration.flights import exact_flight
+from .._integration.flow import Config, closed_form_flights, state_scale
 from .._integration.stickslip import hybrid_solve
 
 # events a sequence of one response period may hold (padded up to this)
@@ -127,7 +127,7 @@ def solve_sequence(system, forcing, n, u0, modes, active, cfg: Config):
     integration sees it)."""
 
     # flights in closed form where the configuration allows them (solver None)
-    solver = None if cfg.closed_form and in_closed_form(system, forcing) else cfg.solver
+    solver = None if closed_form_flights(system, forcing, cfg) else cfg.solver
 
     def f(u, with_rates=False):
         r, (fine, gdot) = _residual(u, system, forcing, n, modes, active, solver,

@@ -289,7 +289,7 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
 
                 return jax.jacfwd(states, has_aux=True)(vec)
 
-            if hybrid and ts is None and _closed_form(dyn, cfg):
+            if hybrid and ts is None and closed_form_flights(*dyn, cfg):
                 def jacobian(primals, cfg):
                     return _closed_form_jacobian(primals, active, cfg)
 
@@ -318,9 +318,10 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
     return (ys, status), (dys, None)
 
 
-def _closed_form(dyn, cfg):
-    """Whether the hybrid integrations of ``dyn`` under ``cfg`` fly in closed form."""
-    return cfg.closed_form and in_closed_form(*dyn)
+def closed_form_flights(system, forcing, cfg):
+    """Whether the hybrid integrations of ``system`` under ``forcing`` and ``cfg`` fly in
+    closed form (``_integration.flights``)."""
+    return cfg.closed_form and in_closed_form(system, forcing)
 
 
 def _closed_form_jacobian(primals, active, cfg):

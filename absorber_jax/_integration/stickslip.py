@@ -113,9 +113,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     (``_integration.flights``; ``solver``, ``rtol`` and ``atol`` then unused) instead of a
     diffrax solve, where ``in_closed_form`` allows it (else ignored)."""
     if closed_form and in_closed_form(system, forcing):
-        def segment(free_mode):
-            return closed_form_segment(system, forcing, scale, _sg(t0), t1, ts,
-                                       system.event_step_limit(forcing), max_steps, free_mode)
+        segment = _closed_form_segments(system, forcing, scale, t0, t1, ts, max_steps)
     else:
         def segment(free_mode):
             return _diffrax_segment(system, forcing, scale, t1, ts, solver, rtol, atol,
@@ -123,7 +121,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     out, record, _ = _run(system, forcing, scale, x0, t0, t1, ts, segment, max_segments,
                           record=log)
     if log:
-        _, times, modes, _, _, hit = record
+        times, modes, _, _, hit = record
         return out + ((jnp.where(hit, times, jnp.inf), modes),)
     return out
 
@@ -189,6 +187,16 @@ def _diffrax_segment(system, forcing, scale, t1, ts, solver, rtol, atol, max_ste
     return segment
 
 
+def _closed_form_segments(system, forcing, scale, t0, t1, ts, max_nodes):
+    """The segment functions of ``_run`` in closed form (``flights.closed_form_segment``),
+    given the all-open mode."""
+    def segment(free_mode):
+        return closed_form_segment(system, forcing, scale, _sg(t0), t1, ts,
+                                   system.event_step_limit(forcing), max_nodes, free_mode)
+
+    return segment
+
+
 def _start(system, forcing, scale, x0, t0):
     """The start ``(t0 without tangent, state, mode)``: ``x0`` mapped into the modes'
     domain, and moved along its mode's field by the start time's tangent."""
@@ -233,10 +241,10 @@ def _run(system, forcing, scale, x0, t0, t1, ts, make_segment, max_segments, rec
     ys)``).
 
     Returns ``hybrid_solve``'s outputs, the record of its segments (``record``; else
-    None): ``(starts, ends, modes, states, ends' states, hits)``, ``max_segments`` of each,
-    segment ``k`` from state ``states[k]`` at ``starts[k]`` in ``modes[k]`` to ``ends[k]``
-    where its state is ``ends' states[k]`` (at fixed time), an event there where
-    ``hits[k]``; and the last mode."""
+    None): ``(ends, modes, states, ends' states, hits)``, ``max_segments`` of each,
+    segment ``k`` from state ``states[k]`` in ``modes[k]`` (at ``ends[k - 1]``, the
+    start time for the first) to ``ends[k]`` where its state is ``ends' states[k]`` (at
+    fixed time), an event there where ``hits[k]``; and the last mode."""
     rate, switch = _rate(system, forcing, scale), _switch_of(system, forcing, scale)
     t0b, x0, mode0 = _start(system, forcing, scale, x0, t0)
     t1b = _sg(t1)
@@ -255,7 +263,7 @@ def _run(system, forcing, scale, x0, t0, t1, ts, make_segment, max_segments, rec
         closed = closed + jnp.where(system.in_contact(mode), t_end - t, 0.0)
         if record:
             rec = tuple(r.at[k].set(v) for r, v in
-                        zip(rec, (t, t_end, mode, _sg(x), _sg(x_hat), hit)))
+                        zip(rec, (t_end, mode, _sg(x), _sg(x_hat), hit)))
         return (t_end, x_new, new_mode, k + 1, st, nsteps + steps, ys, impacts, closed, rec)
 
     def cond(c):
@@ -267,7 +275,7 @@ def _run(system, forcing, scale, x0, t0, t1, ts, make_segment, max_segments, rec
         return jnp.zeros((max_segments,) + v.shape, v.dtype)
 
     ys0 = None if ts is None else jnp.zeros(ts.shape + x0.shape, x0.dtype)
-    rec0 = (tuple(slots(v) for v in (t0b, t0b, mode0, x0, x0, False)) if record else None)
+    rec0 = (tuple(slots(v) for v in (t0b, mode0, x0, x0, False)) if record else None)
     c0 = (t0b, x0, mode0, jnp.zeros((), int), jnp.asarray(Status.SUCCESS),
           jnp.zeros((), int), ys0, jnp.zeros((), int), jnp.zeros((), t0b.dtype), rec0)
     t, x, mode, k, st, nsteps, ys, impacts, closed, rec = jax.lax.while_loop(cond, body, c0)
@@ -289,14 +297,15 @@ def _replay(system, forcing, x0, t0, t1, scale, rec, count, last_mode):
     time (``flight_linearizations``: their end states' tangents in the parameters, their
     propagators in the start state), then composed with their events one after the
     other."""
-    starts, ends, modes, states, hats, hits = rec
-    M = starts.shape[0]
-    _, x, _ = _start(system, forcing, scale, x0, t0)
+    t0b, x, _ = _start(system, forcing, scale, x0, t0)
+    M = rec[0].shape[0]
+    starts = jnp.concatenate([t0b[None], rec[0][:-1]])
 
     def batch(c):
         b, x = c
         idx = jnp.minimum(b * REPLAY_BATCH + jnp.arange(REPLAY_BATCH), M - 1)
-        ta, tb, m, xs, xh, hit = (r[idx] for r in rec)
+        tb, m, xs, xh, hit = (r[idx] for r in rec)
+        ta = starts[idx]
         flown, Phi = flight_linearizations(system, forcing, m, scale, xs, ta, tb - ta)
         d = flown - _sg(flown)
         live = jnp.minimum(count - b * REPLAY_BATCH, REPLAY_BATCH)
@@ -334,15 +343,10 @@ def closed_form_jacobian(make, p, s, *, max_nodes, max_segments):
 
     def run(s_):
         system, forcing, x0, t0, t1, scale = make(p_b, s_)
-
-        def segment(free_mode):
-            return closed_form_segment(system, forcing, scale, _sg(t0), t1, None,
-                                       system.event_step_limit(forcing), max_nodes,
-                                       free_mode)
-
+        segment = _closed_form_segments(system, forcing, scale, t0, t1, None, max_nodes)
         out, rec, mode = _run(system, forcing, scale, x0, t0, t1, None, segment,
                               max_segments, record=P > 0)
-        return out[1], (_values(out), rec, mode)
+        return out[1], (jax.lax.stop_gradient(out), rec, mode)
 
     if s.shape[0]:
         J_s, (out, rec, mode) = jax.jacfwd(run, has_aux=True)(s)
@@ -356,8 +360,3 @@ def closed_form_jacobian(make, p, s, *, max_nodes, max_segments):
         return _replay(*make(q, _sg(s)), rec, out[4], mode)
 
     return jax.jacfwd(replay)(p_b), J_s, out
-
-
-def _values(tree):
-    """``tree`` with its arrays' tangents stopped."""
-    return jax.tree_util.tree_map(lambda a: a if a is None else _sg(a), tree)

@@ -76,6 +76,12 @@ GAP = 1e-4
 # succeed decrease the residual at every step
 PATIENT_GROWTH = 10.0
 
+# a rigid-impact corrector's point must close on the statistics' own integration of its
+# orbit within this many corrector tolerances (the two integrations differ by the
+# integrator's error amplified by the orbit's multipliers: ~1e-13 in closed form; a step
+# across a grazing leaves ~1e-3)
+CLOSURE = 100.0
+
 
 # a branch's Poincaré section moves (Driver.resection) where the clearance to the nearest
 # contact wall there has fallen below RESECTION of the best on the orbit, and not where

@@ -367,7 +367,7 @@ def _implicit_orbit_jvp(primals, tangents, *, cfg, n_cap):
 
 
 def finish_orbit(system, forcing, x, n, cfg, status, residual, iterations, with_floquet=True,
-            n_cap=1, multipliers=None, tol=None, section=None):
+            n_cap=1, multipliers=None, tol=None, section=None, closure=None):
     """The ``SteadyState`` of the scaled orbit state ``x`` (statistics, multipliers,
     stability); ``multipliers`` when the caller already has them (continuation: from the
     Jacobian of its last corrector step).  With ``tol`` (shooting), ``residual`` and
@@ -378,7 +378,14 @@ def finish_orbit(system, forcing, x, n, cfg, status, residual, iterations, with_
     section ``section`` samples after ``t = 0`` (``forcing`` is the
     ``PhasedHarmonic`` of that section); the state reported is
     the orbit's at ``t = 0`` (a sample of the statistics' integration), and the result is
-    ``(steady, Section)`` (``section_of``)."""
+    ``(steady, Section)`` (``section_of``).
+
+    ``closure=(weight, bound)`` (continuation): a solved ``status`` is kept only where the
+    statistics' own integration returns to ``x`` within ``bound`` (``max |end - x|·weight``,
+    ``weight`` the unknowns' scale over the flow's), else it is ``NO_CONVERGENCE``: the
+    corrector's last Newton step, taken with the Jacobian at hand, can cross a grazing (a
+    flight that now passes a wall), where the period map jumps and the point is no
+    orbit."""
     scale = state_scale(system, forcing)
     stats, st2, stroke_max, end, samples = orbit_statistics(system, forcing, x, n, cfg, n_cap)
     if section is not None and samples.shape[0] != SAMPLES_PER_PERIOD * n:
@@ -387,6 +394,10 @@ def finish_orbit(system, forcing, x, n, cfg, status, residual, iterations, with_
         residual = jnp.max(jnp.abs(end - x))
         status = jnp.where(st2 != Status.SUCCESS, st2,
                            jnp.where(residual <= tol, Status.SUCCESS, Status.NO_CONVERGENCE))
+    if closure is not None:
+        weight, bound = closure
+        opens = jnp.max(jnp.abs(end - x) * weight) > bound
+        status = jnp.where((status == Status.SUCCESS) & opens, Status.NO_CONVERGENCE, status)
     if multipliers is not None:
         mult = multipliers.astype(complex)
     elif with_floquet:

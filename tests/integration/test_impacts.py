@@ -442,6 +442,32 @@ def test_continuation_passes_the_grazing_where_a_fifth_impact_is_born():
         assert sum(k == "impact" for _, k in events) == 5
 
 
+def test_every_point_past_a_grazing_is_an_orbit_of_the_reference():
+    # the hard scene from its default first orbit at 20 rad/s (three impacts a period): at
+    # 21.98212 rad/s a flight grazes a wall and the four-impact orbits born there run back
+    # down to 20 rad/s.  A Newton step that crosses the grazing lands where the period map
+    # jumps; such a point is no orbit and must not be reported solved (the branch located
+    # the grazing after it, then stopped)
+    e = aj.restitution_of(aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True),
+                          SCENE["m"], SCENE["M"])
+    br = aj.continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=20.0), "omega",
+                         bounds=(20.0, 23.0))
+    assert br.termination == "bounds" and br.reached
+    (graze,) = br.of_kind("grazing")
+    assert graze.located and abs(graze.value - 21.98212) < 1e-4
+    v, impacts = np.asarray(br.values), np.asarray(br.steady.impacts)
+    assert np.all(impacts[: graze.index + 1] == 3) and np.all(impacts[graze.index + 1:] == 4)
+    assert np.all(v[graze.index + 1:] < graze.value) and v[-1] == 20.0
+    assert np.all(np.asarray(br.status) == 0)
+    for j in range(len(v)):
+        W = float(v[j])
+        y0 = np.asarray(br.states[j])
+        y1, events = reference(W, e).run(y0, 0.0, 2 * np.pi / W)
+        scale = SCENE["gap"] * np.array([1.0, W, 1.0, W])
+        assert np.max(np.abs(y1[-1] - y0) / scale) < 1e-7, (j, W)
+        assert sum(k == "impact" for _, k in events) == impacts[j]
+
+
 def test_continuation_moves_its_section_off_an_impact_and_follows_the_branch_on():
     # the same branch on: the five-impact orbits born at 25.18 rad/s fold back down to
     # 20.09 rad/s, turn stable and go up to 26 rad/s.  At 21.51 rad/s on the way down an

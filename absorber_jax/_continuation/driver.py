@@ -46,7 +46,7 @@ from .constants import (
     RESECTION_TANGENT,
 )
 from .events import _events, _g
-from .problem import _corrector, _defect, _jacobian, _Problem
+from .problem import _corrector, _defect, _jacobian, _Problem, _scale_in_section
 from .sequence import (
     event_log,
     sequence_of,
@@ -120,10 +120,11 @@ class _Driver:
         s_old = np.asarray(self.prob.s0)
         sc = point["sc"]
         s_new = sc * max(1.0, float(np.max(np.abs(point["xi"] / sc))))
-        self.prob = eqx.tree_at(lambda q: q.s0, self.prob, jnp.asarray(s_new))
+        self.prob = dataclasses.replace(self.prob, s0=jnp.asarray(s_new))
         z = np.append(point["xi"] / s_new, point["z"][-1])
         t = np.append(point["t"][:-1] * s_old / s_new, point["t"][-1])
-        return dict(point, z=z, t=t / np.linalg.norm(t))
+        return dict(point, z=z, t=t / np.linalg.norm(t), s0=s_new,
+                    section=int(self.prob.section))
 
     def locate(self, kind, a, h):
         """Illinois regula falsi on the arclength ``σ ∈ [0, h]`` from point ``a`` along its
@@ -287,12 +288,17 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             termination = "max_points"
             break
         a = points[-1]
-        b = yield (drv, a["z"] + h * a["t"], a["t"], False)
+        b = yield (drv, _predict(points, h, method.max_angle), a["t"], False)
         turn = float(np.clip(b["t"] @ a["t"], -1.0, 1.0)) if b["ok"] else -1.0
+        chord = b["z"] - a["z"]
+        aside = float(np.clip(chord @ a["t"] / max(np.linalg.norm(chord), 1e-300), -1.0, 1.0))
         # a corner (the tangent turning abruptly where a contact starts to graze: the flow's
         # Jacobian varies like the square root of the distance to grazing) is accepted once
-        # the step is below step / CORNER_REDUCTION and the corrector still converges
-        sharp = (b["ok"] and math.acos(turn) > method.max_angle
+        # the step is below step / CORNER_REDUCTION and the corrector still converges; so is
+        # a point off the tangent's line (the chord between the two points turned from it by
+        # more than max_angle: on a smooth branch it turns half as much as the tangent; a
+        # corrector drawn to a neighbouring branch lands aside)
+        sharp = (b["ok"] and max(math.acos(turn), math.acos(aside)) > method.max_angle
                  and h > method.step / CORNER_REDUCTION)
         if not b["ok"] or sharp:
             if h <= method.min_step * (1 + 1e-12):
@@ -387,6 +393,32 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
         elif it >= 6:
             h = max(0.6 * h, method.min_step)
     return points, bifs, termination
+
+
+def _predict(points, h, max_angle):
+    """The predictor a step ``h`` from the branch's last point ``a``: ``z_a + h t_a + h²κ/2``,
+    ``κ`` the branch's curvature from the turn of the tangent since the point before (in
+    ``a``'s unknowns: same section, its state scale), where the two lie on one smooth
+    piece of the branch (the tangent turned by less than ``max_angle``; not across a
+    grazing, where the branch has a corner), else the tangent's ``z_a + h t_a``.  The
+    tangent predictor's error grows like ``h²``, this one's like ``h³``: on strongly
+    unstable many-impact orbits, whose Newton basin is small, the step can be larger."""
+    a = points[-1]
+    z = a["z"] + h * a["t"]
+    if len(points) < 2:
+        return z
+    p = points[-2]
+    if not (p["ok"] and "s0" in p and "s0" in a and p["section"] == a["section"]):
+        return z
+    s = a["s0"]
+    zp = np.append(p["xi"] / s, p["z"][-1])
+    tp = np.append(p["t"][:-1] * p["s0"] / s, p["t"][-1])
+    tp = tp / np.linalg.norm(tp)
+    ds = float(np.linalg.norm(a["z"] - zp))
+    if not ds > 0 or float(tp @ a["t"]) < math.cos(max_angle):
+        return z
+    bend = 0.5 * h * h * (a["t"] - tp) / ds
+    return z + bend if np.linalg.norm(bend) <= 0.25 * h else z
 
 
 def _past_grazing(bifs, bif, beyond):
@@ -812,7 +844,7 @@ def _events_of(drv, point):
     system, forcing = drv.prob.in_section(jnp.asarray(point["z"][-1]))
     n = int(drv.prob.n)
     period = n * float(forcing.period)
-    sc = np.asarray(state_scale(system, forcing))
+    sc = np.asarray(_scale_in_section(drv.prob, jnp.asarray(point["z"][-1])))
     times, modes, status = event_log(system, forcing, jnp.asarray(point["xi"] / sc),
                                      jnp.asarray(period), drv.prob.cfg.over_periods(n))
     return None if int(status) != Status.SUCCESS else (times, modes, period)
@@ -825,7 +857,7 @@ def _sequence_at(drv, seq, xi, p):
     (``sequence.solve_sequence``)."""
     theta, seg, active = seq
     system, forcing = drv.prob.in_section(jnp.asarray(p))
-    sc = np.asarray(state_scale(system, forcing))
+    sc = np.asarray(_scale_in_section(drv.prob, jnp.asarray(p)))
     n = int(drv.prob.n)
     u, status, _, rates = solve_sequence(system, forcing, n,
                                          jnp.asarray(np.concatenate([xi / sc, theta])),

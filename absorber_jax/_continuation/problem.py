@@ -214,6 +214,12 @@ def _scale_at(prob, p):
 
 
 @eqx.filter_jit
+def _scale_in_section(prob, p):
+    """The flow's state scale at scaled parameter ``p`` seen from ``prob``'s section."""
+    return state_scale(*prob.in_section(p))
+
+
+@eqx.filter_jit
 def _jacobian(prob, z):
     return _evaluate(prob, z)[0]
 

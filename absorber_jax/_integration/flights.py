@@ -116,13 +116,50 @@ def mode_matrix(system, forcing, mode, scale, t):
     return jnp.concatenate([top, lower], axis=0)
 
 
-def exact_flight(system, forcing, mode, scale, x, t, tau):
-    """Scaled state ``x`` (by ``scale``) at time ``t`` [s] carried ``tau`` [s] in the affine
-    ``mode`` with no event: ``e^{Âτ} z`` (``expm``; differentiable in everything, its
-    derivative the exponential's Fréchet derivative)."""
+def _exact_flight(system, forcing, mode, scale, x, t, tau):
+    """``exact_flight`` differentiated through the exponential (its Fréchet derivative)."""
     one = lambda v: jnp.asarray(v)[None]  # noqa: E731
     return flight_linearizations(system, forcing, one(mode), scale, x[None], one(t),
                                  one(tau))[0][0]
+
+
+@eqx.filter_custom_jvp
+def exact_flight(system, forcing, mode, scale, x, t, tau):
+    """Scaled state ``x`` (by ``scale``) at time ``t`` [s] carried ``tau`` [s] in the affine
+    ``mode`` with no event: ``e^{Âτ} z`` (``expm``), differentiable in everything.
+
+    Its JVP (``_exact_flight_jvp``) takes the tangents in the state and the times in
+    closed form, ``dy = [e^{Âτ} dz + Â e^{Âτ} z dτ]_{1..n}`` with ``dz`` the augmented
+    state's tangent in ``x`` and ``t`` (``Â`` is time-invariant and commutes with its
+    exponential): one exponential serves every direction.  Where the parameters (system,
+    forcing, scale) carry tangents, the exponent moves and the JVP is the Fréchet
+    derivative's.  A fixed-sequence solve (``_continuation.sequence``) differentiates in
+    states and event times alone."""
+    return _exact_flight(system, forcing, mode, scale, x, t, tau)
+
+
+@exact_flight.def_jvp
+def _exact_flight_jvp(primals, tangents):
+    system, forcing, mode, scale, x, t, tau = primals
+    t_sys, t_forc, _, t_scale, dx, dt, dtau = tangents
+    if any(leaf is not None for leaf in jax.tree_util.tree_leaves(
+            (t_sys, t_forc, t_scale), is_leaf=lambda a: a is None)):
+        # the parameters move the exponent: the Fréchet derivative, in every direction
+        return eqx.filter_jvp(_exact_flight, primals, tangents)
+    n = x.shape[0]
+    nat = system.state_scale(forcing)
+    ratio = scale / nat
+    A = mode_matrix(system, forcing, mode, nat, t)
+    E = expm((A * tau)[..., None])[..., 0]
+    z, dz = jax.jvp(lambda x_, t_: augmented_state(x_ * ratio, forcing, t_), (x, t),
+                    (_zero_if_none(dx, x), _zero_if_none(dt, t)))
+    Ez = E @ z
+    dy = E @ dz + (A @ Ez) * _zero_if_none(dtau, tau)
+    return Ez[:n] / ratio, dy[:n] / ratio
+
+
+def _zero_if_none(tangent, primal):
+    return jnp.zeros_like(primal) if tangent is None else tangent
 
 
 def flight_linearizations(system, forcing, modes, scale, xs, ts, taus):

@@ -145,6 +145,40 @@ def test_fill_starts_spread_over_the_gaps_by_width():
     assert _fill_starts([], 8)[0].size == 0
 
 
+def test_curved_predictor_errs_at_third_order_on_a_helix():
+    """The predictor a step h along a branch (a helix in the unknowns, radius R, speed c
+    per unit angle R, curvature 1/(R c²); two points a step d apart with their unit
+    tangents): the tangent's error is h²/(2 R c²); bent by the curvature read off the
+    tangents' turn, the error falls to third order (at h = d = R/10 more than ten times
+    less).  Across a turn wider than max_angle (a corner: a grazing) the predictor is the
+    tangent's."""
+    from absorber_jax._continuation.driver import _predict
+
+    R, d = 2.0, 0.2
+
+    def point(s):
+        z = np.array([R * np.cos(s / R), R * np.sin(s / R), 0.3 * s])
+        t = np.array([-np.sin(s / R), np.cos(s / R), 0.3])
+        return dict(z=z, t=t / np.linalg.norm(t), xi=z[:-1], s0=np.ones(2), section=0,
+                    ok=True)
+
+    # the curve's speed is sqrt(1 + 0.09): arclength s' = s * sqrt(1.09)
+    c = np.sqrt(1.09)
+    for h in (0.1, 0.2):
+        a, p = point(1.0), point(1.0 - d / c)
+        true = point(1.0 + h / c)["z"]
+        tangent = np.linalg.norm(a["z"] + h * a["t"] - true)
+        curved = np.linalg.norm(_predict([p, a], h, 0.35) - true)
+        assert tangent > 0.45 * h**2 / (R * c**2)      # h²κ/2, κ = 1/(R c²)
+        assert curved < 0.1 * tangent
+    # a corner: the tangent alone; another section or a first point: likewise
+    a, p = point(1.0), point(1.0 - 1.5 * R)
+    assert np.allclose(_predict([p, a], 0.1, 0.35), a["z"] + 0.1 * a["t"])
+    assert np.allclose(_predict([dict(point(0.8), section=1), a], 0.1, 0.35),
+                       a["z"] + 0.1 * a["t"])
+    assert np.allclose(_predict([a], 0.1, 0.35), a["z"] + 0.1 * a["t"])
+
+
 def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
     """band_continuation's fallback seeds (the closest returns of a marched trajectory):
     marched from the scaled linear response at 1.1 (below the hysteresis band: one stable

@@ -16,8 +16,10 @@ Scenes:
   (``restitution_of``); penalty: that Kelvin–Voigt law.
 - **band**: the hard scene's band 20–45 rad/s by ``band_continuation`` at its defaults,
   both routes, each run twice (the second compiled).
+- **band60**: the same band at the settings of ``scripts/benchmark_hard_contacts.py``'s
+  (8 starts, at most 60 points a half-branch, rtol = atol = 1e-7, 2 fill passes).
 
-    python scripts/benchmark_rigid_impacts.py [--parts building,hard,band] [--devices N]
+    python scripts/benchmark_rigid_impacts.py [--parts building,hard,band,band60] [--devices N]
                                               [--out FILE]
 
 ``--devices N``: both routes on N CPU devices (``aj.use_cpu_cores(N)``; default one): the
@@ -111,9 +113,10 @@ def continue_hard():
                + "".join(f"; grazing at {b.value:.7g} rad/s" for b in br.of_kind("grazing")))
 
 
-def band_hard():
+def band_hard(label="band", **options):
     """``band_continuation`` over 20-45 rad/s on the hard scene, both routes, each timed twice
-    (the second run compiled): points, grazings located, and the parts no branch reached."""
+    (the second run compiled): points, grazings located, and the parts no branch reached.
+    ``options`` go to ``band_continuation`` (both routes)."""
     kv = aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True)
     e = aj.restitution_of(kv, 0.2, 1.0)
     for name, contact in ((f"rigid e={e:.4f}", aj.Restitution(e)), ("penalty KV 2e4", kv)):
@@ -123,7 +126,8 @@ def band_hard():
         def run(system=system, forcing=forcing):
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                brs = aj.band_continuation(system, forcing, "omega", bounds=(20.0, 45.0))
+                brs = aj.band_continuation(system, forcing, "omega", bounds=(20.0, 45.0),
+                                           **options)
             return brs, [str(w.message) for w in caught if "no branch reached" in str(w.message)]
 
         (brs, gaps), t_first = timed(run)
@@ -133,7 +137,7 @@ def band_hard():
         ends = {}
         for b in brs:
             ends[b.termination] = ends.get(b.termination, 0) + 1
-        report(f"[band] {name}: band_continuation 20-45 rad/s: {t_first:.1f} s with "
+        report(f"[{label}] {name}: band_continuation 20-45 rad/s: {t_first:.1f} s with "
                f"compilation, {t_again:.1f} s compiled; {len(brs)} half-branches, {points} "
                f"points, {grazings} grazings; ended {ends}"
                + (f"; {gaps[0]}" if gaps else "; the whole band reached"))
@@ -152,8 +156,13 @@ def main():
         sweep_building()
     if "hard" in a.parts:
         continue_hard()
-    if "band" in a.parts:
+    if "band" in a.parts.split(","):
         band_hard()
+    if "band60" in a.parts.split(","):
+        # the settings of scripts/benchmark_hard_contacts.py's band (8 starts, 60 points a
+        # half-branch, rtol = atol = 1e-7, 2 fill passes)
+        band_hard("band60", starts=8, method=aj.PseudoArclength(max_points=60),
+                  integrator=aj.Integrator(rtol=1e-7, atol=1e-7))
     if a.out:
         with open(a.out, "a") as fh:
             fh.write("\n".join(LINES) + "\n")

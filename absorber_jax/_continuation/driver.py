@@ -121,10 +121,8 @@ class _Driver:
         sc = point["sc"]
         s_new = sc * max(1.0, float(np.max(np.abs(point["xi"] / sc))))
         self.prob = dataclasses.replace(self.prob, s0=jnp.asarray(s_new))
-        z = np.append(point["xi"] / s_new, point["z"][-1])
-        t = np.append(point["t"][:-1] * s_old / s_new, point["t"][-1])
-        return dict(point, z=z, t=t / np.linalg.norm(t), s0=s_new,
-                    section=int(self.prob.section))
+        z, t = _in_scale(point, s_old, s_new)
+        return dict(point, z=z, t=t, s0=s_new, section=int(self.prob.section))
 
     def locate(self, kind, a, h):
         """Illinois regula falsi on the arclength ``σ ∈ [0, h]`` from point ``a`` along its
@@ -405,20 +403,21 @@ def _predict(points, h, max_angle):
     unstable many-impact orbits, whose Newton basin is small, the step can be larger."""
     a = points[-1]
     z = a["z"] + h * a["t"]
-    if len(points) < 2:
+    if len(points) < 2 or points[-2]["section"] != a["section"]:
         return z
-    p = points[-2]
-    if not (p["ok"] and "s0" in p and "s0" in a and p["section"] == a["section"]):
-        return z
-    s = a["s0"]
-    zp = np.append(p["xi"] / s, p["z"][-1])
-    tp = np.append(p["t"][:-1] * p["s0"] / s, p["t"][-1])
-    tp = tp / np.linalg.norm(tp)
+    zp, tp = _in_scale(points[-2], points[-2]["s0"], a["s0"])
     ds = float(np.linalg.norm(a["z"] - zp))
     if not ds > 0 or float(tp @ a["t"]) < math.cos(max_angle):
         return z
     bend = 0.5 * h * h * (a["t"] - tp) / ds
     return z + bend if np.linalg.norm(bend) <= 0.25 * h else z
+
+
+def _in_scale(point, s_old, s_new):
+    """Branch point ``point``'s unknowns and unit tangent, given in the state scale
+    ``s_old``, in the state scale ``s_new``."""
+    t = np.append(point["t"][:-1] * s_old / s_new, point["t"][-1])
+    return np.append(point["xi"] / s_new, point["z"][-1]), t / np.linalg.norm(t)
 
 
 def _past_grazing(bifs, bif, beyond):
@@ -844,7 +843,7 @@ def _events_of(drv, point):
     system, forcing = drv.prob.in_section(jnp.asarray(point["z"][-1]))
     n = int(drv.prob.n)
     period = n * float(forcing.period)
-    sc = np.asarray(_scale_in_section(drv.prob, jnp.asarray(point["z"][-1])))
+    sc = point["sc"]
     times, modes, status = event_log(system, forcing, jnp.asarray(point["xi"] / sc),
                                      jnp.asarray(period), drv.prob.cfg.over_periods(n))
     return None if int(status) != Status.SUCCESS else (times, modes, period)

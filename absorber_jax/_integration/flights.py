@@ -147,10 +147,9 @@ def _exact_flight_jvp(primals, tangents):
         # the parameters move the exponent: the Fréchet derivative, in every direction
         return eqx.filter_jvp(_exact_flight, primals, tangents)
     n = x.shape[0]
-    nat = system.state_scale(forcing)
-    ratio = scale / nat
-    A = mode_matrix(system, forcing, mode, nat, t)
-    E = expm((A * tau)[..., None])[..., 0]
+    ratio = scale / system.state_scale(forcing)
+    A, E = (v[0] for v in _exponentials(system, forcing, jnp.asarray(mode)[None],
+                                        jnp.asarray(t)[None], jnp.asarray(tau)[None]))
     z, dz = jax.jvp(lambda x_, t_: augmented_state(x_ * ratio, forcing, t_), (x, t),
                     (_zero_if_none(dx, x), _zero_if_none(dt, t)))
     Ez = E @ z
@@ -171,14 +170,20 @@ def flight_linearizations(system, forcing, modes, scale, xs, ts, taus):
     ratio of ``scale`` to the system's own state scale.  One batched exponential
     (``expm``) serves the whole batch."""
     n = xs.shape[-1]
-    nat = system.state_scale(forcing)
-    ratio = scale / nat
-    A = jax.vmap(lambda m, t: mode_matrix(system, forcing, m, nat, t))(modes, ts)
-    E = jnp.moveaxis(expm(jnp.moveaxis(A * taus[:, None, None], 0, -1)), -1, 0)
+    ratio = scale / system.state_scale(forcing)
+    _, E = _exponentials(system, forcing, modes, ts, taus)
     z = jax.vmap(lambda x, t: augmented_state(x * ratio, forcing, t))(xs, ts)
     r = _sg(ratio)
     Phi = _sg(E[:, :n, :n]) * (r[None, :] / r[:, None])
     return jnp.einsum("jkl,jl->jk", E[:, :n], z) / ratio, Phi
+
+
+def _exponentials(system, forcing, modes, ts, taus):
+    """``(Â, e^{Âτ})`` of a batch of segments (``modes``, start times ``ts`` [s], durations
+    ``taus`` [s]) on the system's own state scale, batch first: one batched exponential."""
+    nat = system.state_scale(forcing)
+    A = jax.vmap(lambda m, t: mode_matrix(system, forcing, m, nat, t))(modes, ts)
+    return A, jnp.moveaxis(expm(jnp.moveaxis(A * taus[:, None, None], 0, -1)), -1, 0)
 
 
 def _products(A, B):

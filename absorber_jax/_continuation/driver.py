@@ -403,7 +403,9 @@ def _predict(points, h, max_angle):
     unstable many-impact orbits, whose Newton basin is small, the step can be larger."""
     a = points[-1]
     z = a["z"] + h * a["t"]
-    if len(points) < 2 or points[-2]["section"] != a["section"]:
+    # balanced orbits' points (``balance._BalanceDriver``) carry no state scale of their
+    # own: the tangent alone there
+    if len(points) < 2 or "s0" not in a or points[-2]["section"] != a["section"]:
         return z
     zp, tp = _in_scale(points[-2], points[-2]["s0"], a["s0"])
     ds = float(np.linalg.norm(a["z"] - zp))

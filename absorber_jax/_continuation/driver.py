@@ -280,6 +280,7 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
     rigid = has_rigid_walls(drv.prob.system)
     checked = 0                 # points up to this one were looked at for a creep
+    retried = False             # the step was cut since the last point
     bar.update(1)
     while termination is None:
         if len(points) >= method.max_points:
@@ -317,7 +318,8 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                 bar.update(1)
                 h = method.step
                 continue
-            h = max(0.5 * h, method.min_step)
+            h = max(_shrink(method, turn, aside, sharp) * h, method.min_step)
+            retried = True
             continue
         if rigid and not _clear(drv, b) and _clear(drv, a) and _impacts(a) == _impacts(b):
             # a flight of b passes through a wall (an excursion shorter than an integrator
@@ -385,12 +387,38 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                 bar.update(1)
                 h = method.step
                 continue
-        it = int(b["ss"].iterations)
-        if it <= 3:
-            h = min(1.5 * h, method.max_step)
-        elif it >= 6:
-            h = max(0.6 * h, method.min_step)
+        h = min(max(_grow(method, int(b["ss"].iterations), turn, aside, retried) * h,
+                    method.min_step), method.max_step)
+        retried = False
     return points, bifs, termination
+
+
+def _grow(method, iterations, turn, aside, retried):
+    """The factor on the arclength step after an accepted one that took ``iterations``
+    Newton steps and turned the tangent by ``acos(turn)``, the chord off it by
+    ``acos(aside)``: 1.5 after an easy step (at most 3 iterations), 0.6 after a hard one
+    (6 or more); no growth right after a rejected try (``retried``: the step that failed
+    was at most twice this one); and no more than brings the expected turn (proportional
+    to the step on a smooth branch) to half of ``max_angle``, so that the next step is not
+    rejected as sharp."""
+    grow = 1.5 if iterations <= 3 else (0.6 if iterations >= 6 else 1.0)
+    if retried:
+        grow = min(grow, 1.0)
+    angle = max(math.acos(turn), 2 * math.acos(aside))
+    if angle > 0:
+        grow = min(grow, max(0.5 * method.max_angle / angle, 0.5))
+    return grow
+
+
+def _shrink(method, turn, aside, sharp):
+    """The factor on the arclength step after a rejected try: a half where the corrector
+    failed; where it converged to a point too far round (``sharp``: the tangent turned by
+    ``acos(turn)`` or the chord by ``acos(aside)``, beyond ``max_angle``), what brings that
+    turn to half of ``max_angle`` (between a tenth and a half)."""
+    if not sharp:
+        return 0.5
+    angle = max(math.acos(turn), 2 * math.acos(aside))
+    return min(max(0.5 * method.max_angle / angle, 0.1), 0.5)
 
 
 def _predict(points, h, max_angle):

@@ -179,6 +179,63 @@ def test_curved_predictor_errs_at_third_order_on_a_helix():
     assert np.allclose(_predict([a], 0.1, 0.35), a["z"] + 0.1 * a["t"])
 
 
+def test_step_control_follows_a_tight_turn_without_sharp_rejections():
+    """The arclength step after each point, on a branch that is a circle of radius R in
+    the unknowns (every step of max_step would turn the tangent by 1 rad, three times
+    max_angle), corrected exactly (the circle cut by the predictor's hyperplane): the
+    driver's rules (curved predictor, growth after an easy step held to half of max_angle
+    of turn, no growth right after a rejected try, a sharp step cut to that turn) go once
+    round with no step rejected as sharp after the first two, each step turning the
+    tangent by max_angle/4 to max_angle; the step a sharp try is cut to turns it by about
+    max_angle/2."""
+    import math
+
+    from absorber_jax._continuation.driver import _grow, _predict, _shrink
+
+    method = aj.PseudoArclength()
+    R = method.max_step
+    rng = np.random.default_rng(0)
+
+    def on_circle(zp, tp):
+        c = float(tp @ zp)
+        nrm = np.array([-tp[1], tp[0]])
+        s = math.sqrt(R * R - c * c) * (1.0 if nrm @ zp >= 0 else -1.0)
+        z = c * tp + s * nrm
+        t = np.array([-z[1], z[0]]) / R
+        return dict(z=z, t=t * np.sign(t @ tp), xi=z[:-1], s0=np.ones(1), section=0, ok=True)
+
+    phi = rng.uniform(0, 2 * np.pi)
+    points = [on_circle(R * np.array([np.cos(phi), np.sin(phi)]),
+                        np.array([-np.sin(phi), np.cos(phi)]))]
+    h, retried, sharp_after, turned, turns = method.step, False, [], 0.0, []
+    while turned < 2 * np.pi:
+        a = points[-1]
+        b = on_circle(_predict(points, h, method.max_angle), a["t"])
+        turn = float(np.clip(b["t"] @ a["t"], -1, 1))
+        chord = b["z"] - a["z"]
+        aside = float(np.clip(chord @ a["t"] / np.linalg.norm(chord), -1, 1))
+        angle = max(math.acos(turn), math.acos(aside))
+        if angle > method.max_angle:
+            sharp_after.append(len(points))
+            cut = _shrink(method, turn, aside, True) * h
+            assert 0.3 * method.max_angle < cut / R < 0.7 * method.max_angle
+            h, retried = cut, True
+            continue
+        points.append(b)
+        turned += math.acos(turn)
+        turns.append(math.acos(turn))
+        h = min(max(_grow(method, 1, turn, aside, retried) * h, method.min_step),
+                method.max_step)
+        retried = False
+    assert all(k <= 2 for k in sharp_after), sharp_after
+    assert min(turns[3:]) > 0.25 * method.max_angle and max(turns) <= method.max_angle
+    # a failed corrector halves the step; an easy step on a straight branch grows it by 1.5
+    assert _shrink(method, -1.0, 1.0, False) == 0.5
+    assert _grow(method, 1, 1.0, 1.0, False) == 1.5
+    assert _grow(method, 1, 1.0, 1.0, True) == 1.0
+    assert _grow(method, 7, 1.0, 1.0, False) == 0.6
+
+
 def test_close_returns_of_a_settling_trajectory_lie_on_the_periodic_orbit():
     """band_continuation's fallback seeds (the closest returns of a marched trajectory):
     marched from the scaled linear response at 1.1 (below the hysteresis band: one stable

@@ -11,9 +11,10 @@ dry friction at its first degree of freedom, free vibration with the artificial 
 Unknowns ``(q1(0), q2(0), q1'(0), ω, ξ)``, ``q2'(0) = 0`` (phase); equations: the state after
 one period ``T = 2π/ω`` equals the start (four), and the modal amplitude ``a``:
 ``Σ_k ψ_kᴴ M ψ_k a² = 2 <qᵀMq> - <q>ᵀM<q>`` (Parseval; ``< >`` the mean over a period),
-integrated with the state.  Radau at rtol 1e-11 with the exact Jacobian (the friction's
-velocity scale makes the first degree of freedom stiff: c/m = 5000 1/s against
-ω ≈ 25 rad/s)."""
+integrated with the state.  LSODA (stiff/non-stiff switching) at rtol 1e-12 with the exact
+Jacobian (the friction's velocity scale makes the first degree of freedom stiff: c/m = 5000
+1/s against ω ≈ 25 rad/s): its end state agrees with Radau's at rtol 1e-12 to ~1e-12, in
+about a thirtieth of the time."""
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -52,7 +53,7 @@ def _period(u):
     y0 = np.array([q1, q2, v1, 0.0, 0.0, 0.0, 0.0])
     T = 2 * np.pi / w
     f, jac = _rhs(xi)
-    sol = solve_ivp(f, (0.0, T), y0, method="Radau", jac=jac, rtol=1e-11, atol=1e-13)
+    sol = solve_ivp(f, (0.0, T), y0, method="LSODA", jac=jac, rtol=1e-12, atol=1e-14)
     yT = sol.y[:, -1]
     mean_q, mean_e = yT[4:6] / T, yT[6] / T
     return yT[:4] - y0[:4], 2 * mean_e - mean_q @ M @ mean_q

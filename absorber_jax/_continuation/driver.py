@@ -687,7 +687,10 @@ def _approach(drv, point):
             point["approach"] = (max(coarse, -length), length)
             return point["approach"]
         system, forcing = drv.prob.at(jnp.asarray(point["z"][-1]))
-        kinematics, dt, length, impacts = _sampled(drv, system, forcing, point["x0"])
+        # seen from phase 0: the forcing of the same type as a section's (_grazing_time),
+        # so that _orbit_kinematics is traced and compiled once for both
+        kinematics, dt, length, impacts = _sampled(drv, system, forcing.at_phase(0.0),
+                                                   point["x0"])
         if impacts != _impacts(point):
             # the orbit integrated closely impacts where the branch's did not: one of its
             # flights passes through a wall

@@ -476,10 +476,12 @@ class StructuralSystem(AbstractHybridSystem):
         f_ext = forcing(t)
         k = len(self._rigid())
         rate = lambda lam: self._rate(s, f_ext, rigid_forces=lam)  # noqa: E731
-        zero = jnp.zeros((k,), s.dtype)
-        r0, R = rate(zero), jax.jacfwd(rate)(zero)
-        a0 = self._normal_rates(s, r0)
-        W = jax.vmap(lambda col: self._normal_rates(s, col), in_axes=1, out_axes=1)(R)
+        # both maps are linearized once (one trace each) and applied to every direction
+        r0, in_forces = jax.linearize(rate, jnp.zeros((k,), s.dtype))
+        R = jax.vmap(in_forces, out_axes=1)(jnp.eye(k, dtype=s.dtype))
+        _, normal_rate = jax.linearize(lambda y: self._normals(y)[1], s)
+        a0 = normal_rate(r0)
+        W = jax.vmap(normal_rate, in_axes=1, out_axes=1)(R)
         return r0, R, a0, W
 
     def _held(self, rate, mode):

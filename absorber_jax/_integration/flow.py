@@ -521,7 +521,12 @@ def accurate_tangents(cfg: Config) -> Config:
     return dataclasses.replace(cfg, tangent_control=True)
 
 
-def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000):
+def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=200_000, *,
+                closed_form=None):
+    """The integration settings of ``system`` under ``forcing``: ``solver`` resolved (None or
+    ``"auto"``: by the scene), tangent control where the scene is stiff for an explicit
+    solver, and flights in closed form where ``closed_form`` (None: where the solver was
+    left to the scene, None or ``"auto"``; a caller that resolved it first says so)."""
     _, solver_obj = _resolve_solver(solver, system, forcing, rtol)
     explicit = not isinstance(solver_obj, diffrax.AbstractImplicitSolver)
     lam, period = system.stiffness_rate(), forcing.period
@@ -529,4 +534,5 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
                 and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
     return Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
                    tangent_control=bool(explicit and stiffish and not is_hybrid(system)),
-                   closed_form=solver is None or (isinstance(solver, str) and solver == "auto"))
+                   closed_form=(solver is None or (isinstance(solver, str) and solver == "auto"))
+                   if closed_form is None else bool(closed_form))

@@ -428,8 +428,12 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
     warn_scales(system, [_forcing(amplitude, float(w))
                          for w in om[np.linspace(0, om.size - 1, min(om.size, 16)).astype(int)]],
                 "frequency_response")
+    # a solver left to the scene: rigid impacts on a linear structure fly in closed form
+    # (the grid's solver then serves nothing else)
+    closed_form = solver is None or solver == "auto"
     solver = _grid_solver(system, names, pvals, amplitude, om, solver, rtol)
-    cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps)
+    cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps,
+                      closed_form=closed_form)
     run = _run_parallel if direction == "parallel" else _run_sequential
     res = run(system, om, pvals, names, amplitude, cfg, method, bool(floquet), direction,
               chunk_size, shard, progress)

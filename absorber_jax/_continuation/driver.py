@@ -404,10 +404,7 @@ def _grow(method, iterations, turn, aside, retried):
     grow = 1.5 if iterations <= 3 else (0.6 if iterations >= 6 else 1.0)
     if retried:
         grow = min(grow, 1.0)
-    angle = max(math.acos(turn), 2 * math.acos(aside))
-    if angle > 0:
-        grow = min(grow, max(0.5 * method.max_angle / angle, 0.5))
-    return grow
+    return min(grow, max(_half_turn(method, turn, aside), 0.5))
 
 
 def _shrink(method, turn, aside, sharp):
@@ -417,9 +414,15 @@ def _shrink(method, turn, aside, sharp):
     turn to half of ``max_angle`` (between a tenth and a half)."""
     if not sharp:
         return 0.5
-    angle = max(math.acos(turn), 2 * math.acos(aside))
-    return min(max(0.5 * method.max_angle / angle, 0.1), 0.5)
+    return min(max(_half_turn(method, turn, aside), 0.1), 0.5)
 
+
+def _half_turn(method, turn, aside):
+    """The factor on a step that turned the tangent by ``acos(turn)`` and the chord off it
+    by ``acos(aside)`` (half the tangent's turn on a smooth branch) that brings the turn,
+    proportional to the step, to half of ``max_angle`` (inf where it did not turn)."""
+    angle = max(math.acos(turn), 2 * math.acos(aside))
+    return 0.5 * method.max_angle / angle if angle > 0 else math.inf
 
 def _predict(points, h, max_angle):
     """The predictor a step ``h`` from the branch's last point ``a``: ``z_a + h t_a + h²κ/2``,

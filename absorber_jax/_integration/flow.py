@@ -26,7 +26,7 @@ from .._core.checks import is_traced
 from .._core.status import Status, from_diffrax
 from .._systems.base import is_hybrid
 from .flights import in_closed_form
-from .simulate import _resolve_solver
+from .simulate import _resolve_solver, left_to_scene
 from .stickslip import SEGMENTS_PER_PERIOD, closed_form_jacobian, hybrid_solve
 from .unrolled import unrolled
 
@@ -525,8 +525,8 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
                 closed_form=None):
     """The integration settings of ``system`` under ``forcing``: ``solver`` resolved (None or
     ``"auto"``: by the scene), tangent control where the scene is stiff for an explicit
-    solver, and flights in closed form where ``closed_form`` (None: where the solver was
-    left to the scene, None or ``"auto"``; a caller that resolved it first says so)."""
+    solver, and flights in closed form where ``closed_form`` (None: where the solver is
+    ``left_to_scene``; a caller that resolved it first passes that of its own input)."""
     _, solver_obj = _resolve_solver(solver, system, forcing, rtol)
     explicit = not isinstance(solver_obj, diffrax.AbstractImplicitSolver)
     lam, period = system.stiffness_rate(), forcing.period
@@ -534,5 +534,5 @@ def make_config(system, forcing, solver=None, rtol=1e-9, atol=1e-9, max_steps=20
                 and float(lam) * float(period) > TANGENT_CONTROL_STEPS_PER_PERIOD)
     return Config(solver=solver_obj, rtol=float(rtol), atol=float(atol), max_steps=int(max_steps),
                    tangent_control=bool(explicit and stiffish and not is_hybrid(system)),
-                   closed_form=(solver is None or (isinstance(solver, str) and solver == "auto"))
-                   if closed_form is None else bool(closed_form))
+                   closed_form=left_to_scene(solver) if closed_form is None
+                   else bool(closed_form))

@@ -110,8 +110,14 @@ def choose_solver(system: AbstractSystem, forcing: AbstractForcing, *,
     return "kvaerno5"
 
 
+def left_to_scene(solver) -> bool:
+    """Whether ``solver`` leaves the choice to the scene (None or ``"auto"``): rigid impacts
+    on a linear structure then fly in closed form."""
+    return solver is None or (isinstance(solver, str) and solver == "auto")
+
+
 def _resolve_solver(solver, system, forcing, rtol=None):
-    if solver is None or solver == "auto":
+    if left_to_scene(solver):
         solver = choose_solver(system, forcing, rtol=rtol)
     if isinstance(solver, str):
         key = solver.lower()
@@ -394,7 +400,7 @@ def simulate(
     name, solver_obj = _resolve_solver(solver, system, forcing)
     # rigid impacts on a linear structure under harmonics: flights in closed form, unless
     # a solver was named
-    closed_form = ((solver is None or solver == "auto") and is_hybrid(system)
+    closed_form = (left_to_scene(solver) and is_hybrid(system)
                    and in_closed_form(system, forcing))
     if closed_form:
         name = "closed-form"

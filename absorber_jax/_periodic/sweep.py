@@ -21,7 +21,7 @@ from .._core.status import Status, nan_where_failed
 from .._core.units import Signals, signals_of
 from .._integration.flow import lane_by_lane, large_state, state_scale
 from .._integration.settings import integrator_from
-from .._integration.simulate import choose_solver
+from .._integration.simulate import choose_solver, left_to_scene
 from .._systems.base import AbstractSystem, is_hybrid
 from .._systems.forcing import at_frequency, sweep_shape
 from .._systems.params import replace_params, resolve
@@ -430,7 +430,7 @@ def frequency_response(system: AbstractSystem, omegas, *, amplitude, method=None
                 "frequency_response")
     # a solver left to the scene: rigid impacts on a linear structure fly in closed form
     # (the grid's solver then serves nothing else)
-    closed_form = solver is None or solver == "auto"
+    closed_form = left_to_scene(solver)
     solver = _grid_solver(system, names, pvals, amplitude, om, solver, rtol)
     cfg = make_config(system, _forcing(amplitude, float(om[0])), solver, rtol, atol, max_steps,
                       closed_form=closed_form)
@@ -459,7 +459,7 @@ def _grid_solver(system, names, pvals, amplitude, om, solver, rtol):
     """The one solver of a sweep's grid: as given, or (``None``/``"auto"``) implicit if any
     design is stiff at the lowest frequency (the longest period: the most explicit steps per
     period)."""
-    if solver is not None and solver != "auto":
+    if not left_to_scene(solver):
         return solver
     designs = pvals if pvals.shape[0] <= 256 else np.stack([pvals.min(0), pvals.max(0)])
     f0 = _forcing(amplitude, float(om[0]))

@@ -90,6 +90,7 @@ def _residual(u, system, forcing, n, modes, active, solver, max_steps, with_rate
     """The sequence's equations at unknowns ``u = (x₀ scaled, θ)``; whether every flow
     succeeded and every jump led into the sequence's next mode; and (``with_rates``, else
     zeros) each event's switch rate times the response period."""
+    system = system.prepared()
     scale = state_scale(system, forcing)
     period = n * forcing.period
     N = scale.shape[0]

@@ -95,6 +95,7 @@ def _scaled_rate(dyn, t, x):
 def _mode_rate(dyn, t, x):
     """The rate of hybrid ``dyn`` at scaled state ``x`` and time ``t`` in the mode there."""
     system, forcing = dyn
+    system = system.prepared()
     scale = state_scale(system, forcing)
     mode = system.mode_of(t, x * scale, forcing)
     return system.mode_rate(t, x * scale, forcing, mode) / scale

@@ -112,6 +112,7 @@ def hybrid_solve(system, forcing, x0, t0, t1, ts, *, solver, rtol, atol, max_ste
     ``closed_form``: each segment's flight by the matrix exponential of its affine mode
     (``_integration.flights``; ``solver``, ``rtol`` and ``atol`` then unused) instead of a
     diffrax solve, where ``in_closed_form`` allows it (else ignored)."""
+    system = system.prepared()
     if closed_form and in_closed_form(system, forcing):
         segment = _closed_form_segments(system, forcing, scale, t0, t1, ts, max_steps)
     else:
@@ -343,6 +344,7 @@ def closed_form_jacobian(make, p, s, *, max_nodes, max_segments):
 
     def run(s_):
         system, forcing, x0, t0, t1, scale = make(p_b, s_)
+        system = system.prepared()
         segment = _closed_form_segments(system, forcing, scale, t0, t1, None, max_nodes)
         out, rec, mode = _run(system, forcing, scale, x0, t0, t1, None, segment,
                               max_segments, record=P > 0)
@@ -357,6 +359,7 @@ def closed_form_jacobian(make, p, s, *, max_nodes, max_segments):
         return jnp.zeros(out[1].shape + (0,), out[1].dtype), J_s, out
 
     def replay(q):
-        return _replay(*make(q, _sg(s)), rec, out[4], mode)
+        system, *rest = make(q, _sg(s))
+        return _replay(system.prepared(), *rest, rec, out[4], mode)
 
     return jax.jacfwd(replay)(p_b), J_s, out

@@ -502,6 +502,7 @@ def wall_kinematics(system, forcing, ts, states):
     """Each wall's penetration [m], its rate [m/s] and its acceleration [m/s²] at the
     internal ``states`` at times ``ts`` [s] of ``forcing``, ``(N, walls)`` each: the rates
     those of free flight (every contact open)."""
+    system = system.prepared()
     free = jnp.zeros_like(system.mode_of(0.0, system.rest_state(), forcing))
 
     def kinematics(t, s):

@@ -66,6 +66,9 @@ class AbstractAbsorberSystem(AbstractHybridSystem):
     def num_states(self) -> int:
         return 4 + self.num_law_states
 
+    def prepared(self):
+        return self     # two masses: nothing worth computing ahead
+
     @abc.abstractmethod
     def coupling(self, u, w, z):
         """``(force on the primary from the absorber [N], dz/dt)`` for relative motion

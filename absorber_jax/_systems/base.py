@@ -183,6 +183,12 @@ class AbstractHybridSystem(AbstractSystem):
         under a forcing with exact harmonics (``absorber_jax._integration.flights``)."""
 
     @abc.abstractmethod
+    def prepared(self):
+        """The system as one hybrid integration uses it: the same modes, switches and jumps,
+        with what they share and what stays fixed along an integration computed once (a
+        structure's contact matrices); ``self`` where there is nothing to compute."""
+
+    @abc.abstractmethod
     def mode_of(self, t, s, forcing):
         """Integer mode (or per-element modes) of internal state ``s`` at time ``t``."""
 

@@ -190,6 +190,8 @@ class StructuralSystem(AbstractHybridSystem):
     # mass, damping and stiffness all diagonal (a modal model): the equations of motion are
     # then evaluated mode by mode (elementwise) instead of by matrix products
     diagonal: bool = eqx.field(static=True, init=False)
+    # the rigid impact elements' matrices (``prepared``); None on a system as built
+    contact_matrices: object = eqx.field(init=False)
 
     def __init__(self, structure, elements=(), *, load, observe=None, mass_inverse=None):
         if not isinstance(structure, LinearStructure):
@@ -229,6 +231,7 @@ class StructuralSystem(AbstractHybridSystem):
                              else jnp.asarray(mass_inverse, dtype=float))
         self.diagonal = _all_diagonal(structure.mass, structure.damping, structure.stiffness,
                                       self.mass_inverse)
+        self.contact_matrices = None
         if sum(is_exact(e) for e in elements) > 1:
             raise ValueError("StructuralSystem.elements: at most one friction damper with an "
                              "exact (event-driven) law; give the others an eps")
@@ -420,6 +423,16 @@ class StructuralSystem(AbstractHybridSystem):
         # flight; held elements' forces from linear constraints)
         return bool(self._rigid()) and len(self._rigid()) == len(self.elements)
 
+    def prepared(self):
+        """This system with its rigid impact elements' matrices (``ContactMatrices``)
+        computed once, for one hybrid integration: every switch, jump and mode rate then
+        reads them instead of evaluating the elements again (the same values; far less to
+        trace).  ``self`` without rigid elements or when already prepared."""
+        if not self._rigid() or self.contact_matrices is not None:
+            return self
+        cm = ContactMatrices.of(self)
+        return eqx.tree_at(lambda s: s.contact_matrices, self, cm, is_leaf=lambda x: x is None)
+
     def mode_of(self, t, s, forcing):
         if self._rigid():
             return self._rigid_mode_of(t, s, forcing)
@@ -461,6 +474,8 @@ class StructuralSystem(AbstractHybridSystem):
 
     def _normals(self, s):
         """Per rigid element, its normal coordinate ``r`` [m] and rate ``ṙ`` [m/s]."""
+        if self.contact_matrices is not None:
+            return self.contact_matrices.Gx @ s, self.contact_matrices.Gv @ s
         views = self._element_views(s)
         rs = [self.elements[i].normal(*views[i]) for i in self._rigid()]
         return jnp.stack([r for r, _ in rs]), jnp.stack([rd for _, rd in rs])
@@ -468,6 +483,8 @@ class StructuralSystem(AbstractHybridSystem):
     def _normal_rates(self, s, ds):
         """``ṙ`` of the rigid elements, differentiated along ``ds`` (``r̈`` when ``ds`` is the
         rate; linear in ``ds``)."""
+        if self.contact_matrices is not None:
+            return self.contact_matrices.Gv @ ds
         return jax.jvp(lambda y: self._normals(y)[1], (s,), (ds,))[1]
 
     def _rigid_response(self, t, s, forcing):
@@ -475,6 +492,11 @@ class StructuralSystem(AbstractHybridSystem):
         the rate is affine in the rigid elements' contact forces."""
         f_ext = forcing(t)
         k = len(self._rigid())
+        cm = self.contact_matrices
+        if cm is not None:
+            r0 = (cm.rate_at_rest + cm.A @ s + cm.b * f_ext if cm.A is not None
+                  else self._rate(s, f_ext, rigid_forces=jnp.zeros((k,), s.dtype)))
+            return r0, cm.R, cm.Gv @ r0, cm.W
         rate = lambda lam: self._rate(s, f_ext, rigid_forces=lam)  # noqa: E731
         # both maps are linearized once (one trace each) and applied to every direction
         r0, in_forces = jax.linearize(rate, jnp.zeros((k,), s.dtype))
@@ -873,6 +895,48 @@ class StructuralSystem(AbstractHybridSystem):
         return [f"{nm}.{p}" for nm, e in zip(self.element_names, self.elements)
                 for p in e.parameter_names()]
 
+
+class ContactMatrices(eqx.Module):
+    r"""A structure's rigid impact elements as matrices (``StructuralSystem.prepared``).
+
+    With the contact forces ``λ`` [N] of the ``k`` rigid elements and ``F`` the load's
+    value, the structure's rate is affine in ``λ``, ``ṡ = r_0(s, F) + R λ``; the normal
+    coordinates and their rates are linear in the state, ``r = G_x s`` [m] and ``ṙ = G_v s``
+    [m/s]; so the normal accelerations are ``r̈ = G_v r_0 + W λ`` with the Delassus matrix
+    ``W = G_v R`` [m/s²/N].  ``R``, ``G_x``, ``G_v`` and ``W`` do not depend on the state (a
+    linear structure's constant mass matrix).  Where every element is rigid
+    (``affine_modes``), ``r_0 = d + A s + b F`` as well.
+
+    Fields: ``R`` (n×k), ``Gx``, ``Gv`` (k×n), ``W`` (k×k); ``A`` (n×n), ``b`` (n) and
+    ``rate_at_rest`` ``d`` (n) where affine, else ``None``."""
+
+    R: jax.Array
+    Gx: jax.Array
+    Gv: jax.Array
+    W: jax.Array
+    A: jax.Array | None
+    b: jax.Array | None
+    rate_at_rest: jax.Array | None
+
+    @classmethod
+    def of(cls, system):
+        """The matrices of ``system``'s rigid elements: one forward-mode Jacobian of its
+        rate in ``(s, F, λ)`` and one of its normals in ``s``, at rest."""
+        n, k = system.num_states, len(system._rigid())
+        dtype = jnp.result_type(float)
+
+        def rate(v):
+            return system._rate(v[:n], v[n], rigid_forces=v[n + 1:])
+
+        v0 = jnp.zeros((n + 1 + k,), dtype)
+        J = jax.jacfwd(rate)(v0)
+        G = jax.jacfwd(lambda s: jnp.concatenate(system._normals(s)))(jnp.zeros((n,), dtype))
+        R, Gx, Gv = J[:, n + 1:], G[:k], G[k:]
+        if system.affine_modes:
+            A, b, d = J[:, :n], J[:, n], rate(v0)
+        else:
+            A = b = d = None
+        return cls(R=R, Gx=Gx, Gv=Gv, W=Gv @ R, A=A, b=b, rate_at_rest=d)
 
 
 class Condensation(eqx.Module):

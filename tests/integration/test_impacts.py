@@ -299,6 +299,51 @@ def test_a_one_storey_structure_with_a_rigid_ball_equals_the_impact_absorber():
                                np.sort(np.abs(np.asarray(s1.multipliers))), rtol=1e-6)
 
 
+@pytest.mark.parametrize("with_spring", [False, True])
+def test_prepared_contact_matrices_give_every_hybrid_member_unchanged(with_spring):
+    # StructuralSystem.prepared reads the rigid elements from matrices; every hybrid member
+    # must equal the one evaluating the elements, in every mode and in its derivatives, on
+    # an affine system (two balls and a floor-to-floor stop) and on one that is not (a
+    # cubic spring added: the rate at zero contact force is then evaluated as before)
+    from builders import CubicSpring
+
+    st = aj.shear_building([2.0, 1.0], [1e3, 1.5e3], rayleigh=(0.3, 1e-3))
+    elements = [aj.ImpactDamper("floor2", m=0.3, gap=2e-3, contact=aj.Restitution(0.7)),
+                aj.ImpactDamper("floor1", m=0.2, gap=1e-3, contact=aj.Restitution(0.5)),
+                aj.Contact("floor2", other="floor1", gap=3e-3, contact=aj.Restitution(0.6))]
+    if with_spring:
+        elements.append(CubicSpring("floor1", k3=2e6))
+    system = aj.StructuralSystem(st, elements, load="floor2")
+    ready = system.prepared()
+    assert ready.contact_matrices is not None and system.contact_matrices is None
+    assert (ready.contact_matrices.A is None) == with_spring
+    assert ready.prepared() is ready
+    f = aj.Harmonic(amplitude=2.0, omega=25.0)
+
+    @jax.jit
+    def members(sys_, t, s, ds, mode):
+        rate = jax.jvp(lambda y: sys_.mode_rate(t, y, f, mode), (s,), (ds,))
+        switch = jax.jvp(lambda y: sys_.switch_function(t, y, f, mode), (s,), (ds,))
+        return (*rate, *switch, *sys_.next_mode(t, s, f, mode), sys_.mode_of(t, s, f),
+                sys_.admissible_state(t, s, f))
+
+    rng = np.random.default_rng(3)
+    n = system.num_states
+    for _ in range(3):
+        s = jnp.asarray(rng.normal(size=n) * 1e-3)
+        ds = jnp.asarray(rng.normal(size=n))
+        t = float(rng.uniform(0.0, 0.3))
+        for mode in ([0, 0, 0], [1, 0, 0], [0, -1, 1], [-1, 0, 1]):
+            mode = jnp.asarray(mode)
+            a = members(system, t, s, ds, mode)
+            b = members(ready, t, s, ds, mode)
+            for k in (0, 1, 2, 3, 5, 7):      # rates, switches, jumped and admissible states
+                np.testing.assert_allclose(b[k], a[k], rtol=1e-10,
+                                           atol=1e-10 * np.max(np.abs(a[k])))
+            for k in (4, 6):                  # next mode, mode
+                np.testing.assert_array_equal(b[k], a[k])
+
+
 def test_elastic_impacts_of_two_balls_conserve_a_buildings_energy():
     # no damping, no load, e = 1: every impact (its impulse from the structure's mass
     # matrix) must keep the mechanical energy; e < 1 must lose some at every impact

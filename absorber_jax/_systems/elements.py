@@ -371,6 +371,20 @@ class AbstractRigidImpactElement(AbstractElement):
         it has none)."""
 
 
+class AbstractLinearElement(AbstractElement):
+    """An element whose forces and own states' rates are linear in the displacements,
+    velocities and accelerations of its degrees of freedom and in its own states (a tuned
+    mass damper; a linear spring or dashpot of your own: subclass this besides your base).
+    With rigid impact elements, and no other kind beside them, a structure's modes stay
+    affine, so its flights between impacts are integrated in closed form (matrix
+    exponentials) instead of by an ODE solver.  It adds no member to implement."""
+
+
+def is_linear(element) -> bool:
+    """Whether ``element`` declares itself linear (``AbstractLinearElement``)."""
+    return isinstance(element, AbstractLinearElement)
+
+
 def is_rigid(element) -> bool:
     """Whether ``element`` is integrated with rigid (event-driven) impacts."""
     return isinstance(element, AbstractRigidImpactElement) and bool(element.rigid)
@@ -707,7 +721,7 @@ class FrictionDamper(AbstractAbsorber, AbstractStickSlipElement):
         return z.at[1].set(0.0)
 
 
-class TunedMassDamper(AbstractSpringAbsorber):
+class TunedMassDamper(AbstractSpringAbsorber, AbstractLinearElement):
     r"""A linear tuned mass damper at a degree of freedom: a mass ``m`` [kg] on a spring
     ``k`` [N/m] and a dashpot ``c`` [N s/m]; force on the host ``k u + c u̇``.
 

@@ -31,7 +31,7 @@ from .._core import units
 from .._core.checks import is_traced
 from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
 from .base import AbstractHybridSystem
-from .elements import AbstractElement, is_exact, is_rigid
+from .elements import AbstractElement, is_exact, is_linear, is_rigid
 from .linear import finite_or_zero
 from .structure import LinearStructure
 
@@ -419,9 +419,9 @@ class StructuralSystem(AbstractHybridSystem):
 
     @property
     def affine_modes(self) -> bool:
-        # a linear structure whose every element is a rigid impact element (no force in
-        # flight; held elements' forces from linear constraints)
-        return bool(self._rigid()) and len(self._rigid()) == len(self.elements)
+        # a linear structure with rigid impact elements (no force in flight; held elements'
+        # forces from linear constraints) and otherwise linear elements only
+        return bool(self._rigid()) and all(is_rigid(e) or is_linear(e) for e in self.elements)
 
     def prepared(self):
         """This system with its rigid impact elements' matrices (``ContactMatrices``)
@@ -904,7 +904,7 @@ class ContactMatrices(eqx.Module):
     coordinates and their rates are linear in the state, ``r = G_x s`` [m] and ``ṙ = G_v s``
     [m/s]; so the normal accelerations are ``r̈ = G_v r_0 + W λ`` with the Delassus matrix
     ``W = G_v R`` [m/s²/N].  ``R``, ``G_x``, ``G_v`` and ``W`` do not depend on the state (a
-    linear structure's constant mass matrix).  Where every element is rigid
+    linear structure's constant mass matrix).  Where every element is rigid or linear
     (``affine_modes``), ``r_0 = d + A s + b F`` as well.
 
     Fields: ``R`` (n×k), ``Gx``, ``Gv`` (k×n), ``W`` (k×k); ``A`` (n×n), ``b`` (n) and

@@ -24,13 +24,23 @@ def _building():
     return aj.StructuralSystem(st, [ball], load="floor3")
 
 
+def _building_with_tmd(e=0.7):
+    # a tuned mass damper on the first floor beside the rigid ball on the top one: linear,
+    # so the modes stay affine
+    st = aj.shear_building([1000.0] * 3, [1e6] * 3, modal_damping=0.02)
+    ball = aj.ImpactDamper("floor3", m=50.0, gap=0.01, contact=aj.Restitution(e))
+    tmd = aj.TunedMassDamper("floor1", m=40.0, k=7.5e3, c=90.0)
+    return aj.StructuralSystem(st, [ball, tmd], load="floor3")
+
+
 def test_affine_modes_reproduce_every_modes_rate():
     rng = np.random.default_rng(0)
     forcings = [aj.Harmonic(amplitude=3.0, omega=30.0),
                 aj.MultiHarmonic([2.0, 0.7, 0.3], 25.0, phases=[0.1, 1.0, -0.4],
                                  orders=[0, 1, 3])]
     cases = [(_absorber(), [0, 1, -1]),
-             (_building(), [np.array([0]), np.array([1]), np.array([-1])])]
+             (_building(), [np.array([0]), np.array([1]), np.array([-1])]),
+             (_building_with_tmd(), [np.array([0]), np.array([1]), np.array([-1])])]
     for system, modes in cases:
         assert system.affine_modes and system.hybrid
         for forcing in forcings:
@@ -51,6 +61,37 @@ def test_affine_modes_reproduce_every_modes_rate():
     fa = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=0.2, k2=1.8e3, c2=0.0,
                              normal_force=2.0, friction=aj.Coulomb(mu=0.3))
     assert fa.hybrid and not fa.affine_modes
+    # a nonlinear element beside a rigid one keeps the general integrator
+    st = aj.shear_building([1000.0] * 3, [1e6] * 3, modal_damping=0.02)
+    ball = aj.ImpactDamper("floor3", m=50.0, gap=0.01, contact=aj.Restitution(0.7))
+    rubbing = aj.FrictionDamper("floor1", m=40.0, k=7.5e3, c=0.0, normal_force=50.0,
+                                friction=aj.Coulomb(mu=0.3, eps=1e-3))
+    mixed = aj.StructuralSystem(st, [ball, rubbing], load="floor3")
+    assert mixed.hybrid and not mixed.affine_modes
+
+
+def test_a_tuned_mass_damper_beside_a_rigid_ball_flies_in_closed_form():
+    # closed-form flights of the building with a TMD and a rigid ball: diffrax's flights
+    # (solver named) converge to them as their tolerance tightens and their order rises,
+    # through many impacts
+    system = _building_with_tmd()
+    f = aj.Harmonic(amplitude=2000.0, omega=14.0)
+    ts = np.linspace(0.0, 4.0, 401)
+    runs = {}
+    for solver, tol in ((None, 1e-9), ("tsit5", 1e-8), ("dopri8", 1e-12)):
+        tr = aj.simulate(system, f, 4.0, ts=ts,
+                         integrator=aj.Integrator(solver=solver, rtol=tol, atol=tol * 1e-3))
+        assert int(tr.status) == 0
+        runs[solver, tol] = np.asarray(tr.ys)
+        if solver is None:
+            assert tr.solver == "closed-form"
+    exact = runs[None, 1e-9]
+    stroke = exact[:, system.slice_of("impact1")][:, 1]       # the ball's relative velocity
+    assert np.sum(np.abs(np.diff(np.sign(stroke))) > 0) >= 8    # reversed many times
+    scale = np.max(np.abs(exact), axis=0)
+    err = {key: np.max(np.abs(run - exact) / scale) for key, run in runs.items()}
+    # measured: 5.7e-6 (tsit5, 1e-8) and 1.4e-9 (dopri8, 1e-12)
+    assert err["dopri8", 1e-12] < 2e-8 and err["dopri8", 1e-12] < 0.01 * err["tsit5", 1e-8], err
 
 
 def test_runs_match_the_event_exact_reference_to_rounding():

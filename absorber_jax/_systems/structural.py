@@ -791,7 +791,11 @@ class StructuralSystem(AbstractHybridSystem):
         impact absorbers, smoothed friction at its initial slope) at ``t = 0``: the
         responses to the forcing's harmonics (``forcing.harmonics()``) superposed.  A
         harmonic the linearisation cannot respond to (a floating absorber under a constant
-        load) is left out."""
+        load) is left out.  One compiled program (not op by op: a first call in a new
+        process would compile every operation of the rate's Jacobian on its own)."""
+        return _linear_guess(self, forcing)
+
+    def _linear_guess(self, forcing):
         rest = self.rest_state()
         A = jax.jacfwd(self._rate)(rest, 0.0)
         b = jax.jacfwd(self._rate, argnums=1)(rest, 0.0)
@@ -894,6 +898,11 @@ class StructuralSystem(AbstractHybridSystem):
     def parameter_names(self) -> list:
         return [f"{nm}.{p}" for nm, e in zip(self.element_names, self.elements)
                 for p in e.parameter_names()]
+
+
+@eqx.filter_jit
+def _linear_guess(system, forcing):
+    return system._linear_guess(forcing)
 
 
 class ContactMatrices(eqx.Module):

@@ -3,6 +3,7 @@ against the systems' own rates, whole runs against the event-exact reference of
 tests/reference_impacts.py (to rounding, where diffrax gets its tolerance), an excursion
 through a wall between two nodes, and derivatives against central differences."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -41,18 +42,21 @@ def test_affine_modes_reproduce_every_modes_rate():
     cases = [(_absorber(), [0, 1, -1]),
              (_building(), [np.array([0]), np.array([1]), np.array([-1])]),
              (_building_with_tmd(), [np.array([0]), np.array([1]), np.array([-1])])]
+    # compiled once per system (op by op, every operation would compile on its own)
+    matrix, augmented = eqx.filter_jit(mode_matrix), eqx.filter_jit(augmented_state)
+    rate = eqx.filter_jit(lambda system, *args: system.mode_rate(*args))
     for system, modes in cases:
         assert system.affine_modes and system.hybrid
         for forcing in forcings:
             assert in_closed_form(system, forcing)
             nat = system.state_scale(forcing)
             for mode in modes:
-                A = mode_matrix(system, forcing, jnp.asarray(mode), nat, 0.0)
+                A = matrix(system, forcing, jnp.asarray(mode), nat, 0.0)
                 for _ in range(3):
-                    t = float(rng.uniform(0, 1))
+                    t = jnp.asarray(rng.uniform(0, 1))
                     s = jnp.asarray(rng.normal(size=nat.shape)) * nat
-                    z = augmented_state(s / nat, forcing, t)
-                    want = system.mode_rate(t, s, forcing, jnp.asarray(mode))
+                    z = augmented(s / nat, forcing, t)
+                    want = rate(system, t, s, forcing, jnp.asarray(mode))
                     got = (A @ z)[: nat.shape[0]] * nat
                     np.testing.assert_allclose(got, want, rtol=1e-12,
                                                atol=1e-12 * float(jnp.max(jnp.abs(want))))

@@ -440,16 +440,23 @@ def test_continuation_passes_grazing_and_locates_it():
         assert sum(k == "impact" for _, k in events) == 1
 
 
-def test_continuation_passes_the_grazing_where_a_fifth_impact_is_born():
-    # the hard scene with e matched to its Kelvin-Voigt contact: from 20 rad/s, unstable
-    # orbits with four impacts a period until one flight between them grazes a wall; the
-    # branch goes on along the orbits with the fifth impact born there
+@pytest.fixture(scope="module")
+def four_impact_branch():
+    """The hard scene with e matched to its Kelvin-Voigt contact, continued from the
+    four-impact orbit at 20 rad/s up to 26 rad/s: ``(e, branch)`` (one continuation for the
+    two tests that read it)."""
     e = aj.restitution_of(aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True),
                           SCENE["m"], SCENE["M"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)      # it stops short further on
-        br = aj.continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=20.0), "omega",
-                             bounds=(20.0, 26.0), guess=FOUR_IMPACTS_AT_20)
+    br = aj.continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=20.0), "omega",
+                         bounds=(20.0, 26.0), guess=FOUR_IMPACTS_AT_20)
+    return e, br
+
+
+def test_continuation_passes_the_grazing_where_a_fifth_impact_is_born(four_impact_branch):
+    # from 20 rad/s, unstable orbits with four impacts a period until one flight between
+    # them grazes a wall; the branch goes on along the orbits with the fifth impact born
+    # there
+    e, br = four_impact_branch
     (graze,) = br.of_kind("grazing")[:1]
     assert graze.located and 25.0 < graze.value < 25.4
     impacts = np.asarray(br.steady.impacts)
@@ -513,15 +520,13 @@ def test_every_point_past_a_grazing_is_an_orbit_of_the_reference():
         assert sum(k == "impact" for _, k in events) == impacts[j]
 
 
-def test_continuation_moves_its_section_off_an_impact_and_follows_the_branch_on():
+def test_continuation_moves_its_section_off_an_impact_and_follows_the_branch_on(
+        four_impact_branch):
     # the same branch on: the five-impact orbits born at 25.18 rad/s fold back down to
     # 20.09 rad/s, turn stable and go up to 26 rad/s.  At 21.51 rad/s on the way down an
     # impact drifts through the Poincaré section at t = 0 (the period map jumps there); the
     # branch moves its section to where the ball flies farthest from the walls and goes on
-    e = aj.restitution_of(aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True),
-                          SCENE["m"], SCENE["M"])
-    br = aj.continuation(rigid(e), aj.Harmonic(amplitude=F0, omega=20.0), "omega",
-                         bounds=(20.0, 26.0), guess=FOUR_IMPACTS_AT_20)
+    e, br = four_impact_branch
     assert br.termination == "bounds" and br.reached
     v, impacts = np.asarray(br.values), np.asarray(br.steady.impacts)
     (graze,) = br.of_kind("grazing")

@@ -46,7 +46,14 @@ from .constants import (
     RESECTION_TANGENT,
 )
 from .events import _events, _g
-from .problem import _corrector, _defect, _jacobian, _Problem, _scale_in_section
+from .problem import (
+    _corrector,
+    _defect,
+    _defect_vector,
+    _jacobian,
+    _Problem,
+    _scale_in_section,
+)
 from .sequence import (
     event_log,
     sequence_of,
@@ -632,10 +639,26 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
         first["ss"] = eqx.tree_at(lambda s: s.status, first["ss"],
                                   np.asarray(Status.NO_CONVERGENCE))
     d_first = float(_defect(prob1, jnp.asarray(first["z"]))) if first["ok"] else 0.0
+    last = {}
 
     def rejoined(x0, p):
+        """Whether the period-2n branch is back on the period-n one: its period-n defect
+        ``d = Φ_nT(x) - x`` within 5 % of the first point's, or reversed since the point
+        before while both stay below the first point's.  Near a flip ``d ≈ (μ - 1) a v =
+        -2 a v``, ``a`` the distance along the flip's eigenvector, and the branch turns in
+        the parameter where ``a`` passes zero (``Ω - Ω_flip ∝ a²``): points on either side
+        of that turn may both stay above 5 % (NLvib 03's lower flip: 1e-6 rad/s away), and
+        beyond it the branch retraces the same orbits shifted by n periods."""
         z = np.append(x0 / np.asarray(s0), p)
-        return float(_defect(prob1, jnp.asarray(z))) < 0.05 * d_first
+        d = np.asarray(_defect_vector(prob1, jnp.asarray(z)))
+        before, last["d"] = last.get("d"), d
+        size = float(np.max(np.abs(d)))
+        if not np.isfinite(size):
+            return False
+        if size < 0.05 * d_first:
+            return True
+        return (before is not None and size < d_first
+                and float(np.max(np.abs(before))) < d_first and float(d @ before) < 0)
 
     return first, rejoined
 

@@ -225,6 +225,14 @@ def _jacobian(prob, z):
 
 
 @eqx.filter_jit
+def _defect_vector(prob, z):
+    """``Φ(x) - x`` of the period-``prob.n`` map at ``z`` (scaled), NaN where the
+    integration failed."""
+    r, st = prob.residual(z)
+    return jnp.where(st == Status.SUCCESS, r, jnp.nan)
+
+
+@eqx.filter_jit
 def _defect(prob, z):
     """``|Φ(x) - x|∞`` of the period-``prob.n`` map at ``z``."""
     r, st = prob.residual(z)

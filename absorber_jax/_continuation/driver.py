@@ -48,7 +48,6 @@ from .constants import (
 from .events import _events, _g
 from .problem import (
     _corrector,
-    _defect,
     _defect_vector,
     _jacobian,
     _Problem,
@@ -630,7 +629,8 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
     for delta in (0.02, 0.05, 0.1, 0.01, 0.005):
         cand = drv.solve(z_star + delta * tv, tv)
         # a genuine period-2n orbit, not the period-n one it branched from
-        if cand["ok"] and float(_defect(prob1, jnp.asarray(cand["z"]))) > 1e3 * drv.method.tol:
+        if cand["ok"] and _size(_defect_vector(prob1, jnp.asarray(cand["z"]))) > (
+                1e3 * drv.method.tol):
             first = cand
             break
     if first is None:
@@ -638,7 +638,7 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
                      t=cand["t"], mult=cand["mult"])
         first["ss"] = eqx.tree_at(lambda s: s.status, first["ss"],
                                   np.asarray(Status.NO_CONVERGENCE))
-    d_first = float(_defect(prob1, jnp.asarray(first["z"]))) if first["ok"] else 0.0
+    d_first = _size(_defect_vector(prob1, jnp.asarray(first["z"]))) if first["ok"] else 0.0
     last = {}
 
     def rejoined(x0, p):
@@ -652,15 +652,21 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
         z = np.append(x0 / np.asarray(s0), p)
         d = np.asarray(_defect_vector(prob1, jnp.asarray(z)))
         before, last["d"] = last.get("d"), d
-        size = float(np.max(np.abs(d)))
+        size = _size(d)
         if not np.isfinite(size):
             return False
         if size < 0.05 * d_first:
             return True
-        return (before is not None and size < d_first
-                and float(np.max(np.abs(before))) < d_first and float(d @ before) < 0)
+        return (before is not None and size < d_first and _size(before) < d_first
+                and float(d @ before) < 0)
 
     return first, rejoined
+
+
+def _size(d):
+    """``max |d|`` of a period map's defect (``_defect_vector``); inf where it failed."""
+    d = np.asarray(d)
+    return float(np.max(np.abs(d))) if np.all(np.isfinite(d)) else np.inf
 
 
 @eqx.filter_jit

@@ -230,10 +230,3 @@ def _defect_vector(prob, z):
     integration failed."""
     r, st = prob.residual(z)
     return jnp.where(st == Status.SUCCESS, r, jnp.nan)
-
-
-@eqx.filter_jit
-def _defect(prob, z):
-    """``|Φ(x) - x|∞`` of the period-``prob.n`` map at ``z``."""
-    r, st = prob.residual(z)
-    return jnp.where(st == Status.SUCCESS, jnp.max(jnp.abs(r)), jnp.inf)

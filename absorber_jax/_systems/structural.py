@@ -786,6 +786,7 @@ class StructuralSystem(AbstractHybridSystem):
             parts.append(e.state_scale(Ldof[ia], w))
         return jnp.concatenate(parts)
 
+    @eqx.filter_jit
     def linear_guess(self, forcing):
         """The periodic response of the system linearised at rest (open gaps, floating
         impact absorbers, smoothed friction at its initial slope) at ``t = 0``: the
@@ -793,9 +794,6 @@ class StructuralSystem(AbstractHybridSystem):
         harmonic the linearisation cannot respond to (a floating absorber under a constant
         load) is left out.  One compiled program (not op by op: a first call in a new
         process would compile every operation of the rate's Jacobian on its own)."""
-        return _linear_guess(self, forcing)
-
-    def _linear_guess(self, forcing):
         rest = self.rest_state()
         A = jax.jacfwd(self._rate)(rest, 0.0)
         b = jax.jacfwd(self._rate, argnums=1)(rest, 0.0)
@@ -900,11 +898,6 @@ class StructuralSystem(AbstractHybridSystem):
                 for p in e.parameter_names()]
 
 
-@eqx.filter_jit
-def _linear_guess(system, forcing):
-    return system._linear_guess(forcing)
-
-
 class ContactMatrices(eqx.Module):
     r"""A structure's rigid impact elements as matrices (``StructuralSystem.prepared``).
 
@@ -929,8 +922,8 @@ class ContactMatrices(eqx.Module):
 
     @classmethod
     def of(cls, system):
-        """The matrices of ``system``'s rigid elements: one forward-mode Jacobian of its
-        rate in ``(s, F, λ)`` and one of its normals in ``s``, at rest."""
+        """The matrices of ``system``'s rigid elements: its rate linearized once in ``(s, F,
+        λ)`` (its value at rest with it) and its normals differentiated in ``s``."""
         n, k = system.num_states, len(system._rigid())
         dtype = jnp.result_type(float)
 
@@ -938,11 +931,12 @@ class ContactMatrices(eqx.Module):
             return system._rate(v[:n], v[n], rigid_forces=v[n + 1:])
 
         v0 = jnp.zeros((n + 1 + k,), dtype)
-        J = jax.jacfwd(rate)(v0)
+        d, tangent = jax.linearize(rate, v0)        # one trace: the value and the map
+        J = jax.vmap(tangent, out_axes=1)(jnp.eye(n + 1 + k, dtype=dtype))
         G = jax.jacfwd(lambda s: jnp.concatenate(system._normals(s)))(jnp.zeros((n,), dtype))
         R, Gx, Gv = J[:, n + 1:], G[:k], G[k:]
         if system.affine_modes:
-            A, b, d = J[:, :n], J[:, n], rate(v0)
+            A, b = J[:, :n], J[:, n]
         else:
             A = b = d = None
         return cls(R=R, Gx=Gx, Gv=Gv, W=Gv @ R, A=A, b=b, rate_at_rest=d)

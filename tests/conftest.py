@@ -44,3 +44,13 @@ def _release_compiled_programs():
 def _x64():
     jax.config.update("jax_enable_x64", True)
     yield
+
+
+# Tests that run for minutes in a process of their own go first: under pytest-xdist each
+# worker takes its share of the tests in collection order, and a two-minute test collected
+# last holds one worker alone at the end of the run while the other waits.
+FIRST = ("tests/test_studies.py::",)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    items.sort(key=lambda item: not item.nodeid.startswith(FIRST))

@@ -109,8 +109,9 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     - ``n``: period multiple of the orbits followed.
     - ``direction``: ``"up"`` or ``"down"``: the parameter's direction at the start.
     - ``start``: None (the first orbit is solved at the forcing's and system's current
-      parameter value by Newton shooting from ``guess``, default the linear response, and by
-      ``steady_state`` with its retries where that fails), or a period-doubling
+      parameter value by Newton shooting from ``guess``, default the linear response; where
+      that fails, from the closest returns of a trajectory marched from it, then by
+      ``steady_state`` with its retries), or a period-doubling
       ``Bifurcation`` of a branch of this system in this parameter: the period-``2n``
       branch born there is followed (branch switching); ``direction`` is then ignored.
     - ``integrator``: an ``Integrator`` (default: the periodic tolerances, rtol = atol =
@@ -169,12 +170,24 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
         g = (shooting.initial_state(system, forcing) if guess is None
              else system.to_internal(jnp.asarray(guess, dtype=float)))
         # the first orbit: the branch's own corrector at the start value (Newton shooting
-        # from the guess, compiled once for the whole branch); steady_state with its
-        # retries (marching, then shooting again) only where that fails: its program costs
-        # a compilation of its own (~20 s on the hard-contact scenes of
-        # scripts/benchmark_hard_contacts.py)
+        # from the guess, compiled once for the whole branch), then from the closest
+        # returns of a marched trajectory, and steady_state with its retries (marching,
+        # then shooting again) only where both fail: its program costs a compilation of its
+        # own (~20 s on the hard-contact scenes of scripts/benchmark_hard_contacts.py; the
+        # rigid one's first call from 20 rad/s, a new process, warm persistent cache:
+        # 31 s with it, 13 s with the close returns)
         e = _axis(prob, direction)
-        first = drv.solve(np.append(np.asarray(g) / np.asarray(s0), p0), e, True)
+        z_guess = np.append(np.asarray(g) / np.asarray(s0), p0)
+        first = drv.solve(z_guess, e, True)
+        if not first["ok"]:
+            # as band_continuation's starts: Newton from the closest returns of a marched
+            # trajectory (a chaotic motion passes near the unstable orbits; a settling one
+            # ends on its orbit), the march a smaller program than steady_state's
+            for z0 in _close_returns([drv], [z_guess])[0]:
+                point = drv.solve(z0, e, True)
+                if point["ok"]:
+                    first = point
+                    break
         if not first["ok"]:
             ss = steady_state(system, forcing, method=shooting, guess=guess, integrator=integ)
             x0 = np.asarray(system.to_internal(ss.state)) / np.asarray(s0)
@@ -182,15 +195,6 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                 first = dict(ss=jax.tree_util.tree_map(np.asarray, ss), ok=False)
             else:
                 first = drv.solve(np.append(x0, p0), e, True)
-            if not first["ok"]:
-                # as band_continuation's starts: Newton from the closest returns of a
-                # marched trajectory (a chaotic motion passes near the unstable orbits)
-                z_guess = np.append(np.asarray(g) / np.asarray(s0), p0)
-                for z0 in _close_returns([drv], [z_guess])[0]:
-                    point = drv.solve(z0, e, True)
-                    if point["ok"]:
-                        first = point
-                        break
         rejoin = None
     else:
         first, rejoin = _switch(drv, system, forcing, start, s0, p0, cfg, parameter, pscale)

@@ -179,15 +179,13 @@ def continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
         e = _axis(prob, direction)
         z_guess = np.append(np.asarray(g) / np.asarray(s0), p0)
         first = drv.solve(z_guess, e, True)
-        if not first["ok"]:
+        seeds = _close_returns([drv], [z_guess])[0] if not first["ok"] else []
+        if seeds:
             # as band_continuation's starts: Newton from the closest returns of a marched
             # trajectory (a chaotic motion passes near the unstable orbits; a settling one
             # ends on its orbit), the march a smaller program than steady_state's
-            for z0 in _close_returns([drv], [z_guess])[0]:
-                point = drv.solve(z0, e, True)
-                if point["ok"]:
-                    first = point
-                    break
+            point = _run(_first_orbit(drv, seeds, e))
+            first = point if point["ok"] else first
         if not first["ok"]:
             ss = steady_state(system, forcing, method=shooting, guess=guess, integrator=integ)
             x0 = np.asarray(system.to_internal(ss.state)) / np.asarray(s0)

@@ -651,13 +651,14 @@ def _switch(drv, system, forcing, bif, s0, p0, cfg, parameter, pscale):
         beyond it the branch retraces the same orbits shifted by n periods."""
         z = np.append(x0 / np.asarray(s0), p)
         d = np.asarray(_defect_vector(prob1, jnp.asarray(z)))
-        before, last["d"] = last.get("d"), d
         size = _size(d)
+        before, size_before = last.get("d"), last.get("size", np.inf)
+        last.update(d=d, size=size)
         if not np.isfinite(size):
             return False
         if size < 0.05 * d_first:
             return True
-        return (before is not None and size < d_first and _size(before) < d_first
+        return (before is not None and size < d_first and size_before < d_first
                 and float(d @ before) < 0)
 
     return first, rejoined

@@ -43,6 +43,11 @@ CRAWL_REACH = 50.0
 APPROACH_MARGIN = 1e-6
 
 
+# a bifurcation located by one half-branch of a band cell is taken by the other, which saw it
+# too, where it lies on that one's bracket: projected within this fraction of the bracket's
+# chord beyond its ends, and as far from it (bifurcation-diagram coordinates)
+CHORD_SAG = 0.1
+
 # a bifurcation is located when its bracket has shrunk to locate_tol and the test function
 # there is this small against its values at the bracket's first ends (else it jumps there)
 JUMP_TOL = 1e-3

@@ -79,8 +79,10 @@ from .driver import (
     _Driver,
     _first_orbit,
     _follow,
+    _inside,
     _run,
     _run_batched,
+    _shared,
     _switch,
 )
 from .method import PseudoArclength
@@ -322,12 +324,23 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
         # the bifurcations of all the half-branches located together (each a few corrector
         # solves in turn: one after the other on its branch, the Hertz band's main pass
         # took 91 rounds of its batch, 37 bifurcations of 1-19 solves each)
+        # (one location for a bifurcation both half-branches of a cell saw: ``_shared``)
         todo = [(i, j) for i, ((_, bifs, _), _, _) in enumerate(out)
                 for j, b in enumerate(bifs) if isinstance(b, tuple)]
-        found = _run_batched([_bifurcation(*out[i][0][1][j]) for i, j in todo], base, method,
-                             lanes)
-        for (i, j), b in zip(todo, found):
-            out[i][0][1][j] = b
+        args = [out[i][0][1][j] for i, j in todo]
+        first, brackets = _shared(args)
+        own = [k for k, f in enumerate(first) if f == k]
+        found = dict(zip(own, _run_batched([_bifurcation(*args[k]) for k in own], base,
+                                           method, lanes)))
+        # a shared location outside the other's bracket: another bifurcation of the same
+        # kind nearby, located in turn
+        again = [k for k, f in enumerate(first) if f != k
+                 and not _inside(brackets[k], found[f])]
+        found.update(zip(again, _run_batched([_bifurcation(*args[k]) for k in again], base,
+                                             method, lanes)))
+        for k, (i, j) in enumerate(todo):
+            b = found.get(k, found[first[k]])
+            out[i][0][1][j] = dataclasses.replace(b, index=args[k][4])
     return _band_result(out, parameter, lo, hi, system)
 
 

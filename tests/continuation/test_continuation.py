@@ -81,6 +81,18 @@ def test_band_continuation_covers_the_band_and_finds_both_folds():
     print(f"band_continuation folds {folds}; jumps {up['W_jump']:.6f} {down['W_jump']:.6f}")
     for w in (up["W_jump"], down["W_jump"]):
         assert min(abs(f - w) / w for f in folds) < 1e-3
+    # every fold lies between its own half-branch's points index and index + 1 (a fold seen
+    # by both half-branches of a cell is located once and given to the other), at the
+    # values continuation locates on its one branch, from other brackets, to 1e-8
+    br = aj.continuation(sysm, aj.Harmonic(amplitude=HARD["F0"], omega=0.8), "omega",
+                         bounds=(0.8, 1.6))
+    single = [f.value for f in br.of_kind("fold")]
+    assert len(single) == 2
+    for b in brs:
+        for f in b.of_kind("fold"):
+            a1, a2 = b.amplitude[f.index], b.amplitude[f.index + 1]
+            assert min(a1, a2) <= f.amplitude <= max(a1, a2), (f, a1, a2)
+            assert f.located and min(abs(f.value - w) / w for w in single) < 1e-8, f.value
     # on the half-branch through both folds: stable outside them, unstable between
     two = [b for b in brs if len(b.of_kind("fold")) == 2]
     assert len(two) >= 1

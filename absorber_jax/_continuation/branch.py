@@ -29,7 +29,8 @@ class Bifurcation(eqx.Module):
     between branch points ``index`` and ``index + 1``; ``located``: the location converged
     to ``locate_tol`` onto a zero of the test function (False where the bracket closed on a
     jump of it: a grazing corner, where the multipliers leap across the circle);
-    ``evaluations``: corrector solves spent locating it."""
+    ``evaluations``: corrector solves spent locating it (0 where ``band_continuation``
+    took the location from the other half-branch of its cell, which saw it too)."""
 
     kind: str = eqx.field(static=True)
     value: float

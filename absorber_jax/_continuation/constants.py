@@ -44,12 +44,14 @@ APPROACH_MARGIN = 1e-6
 
 
 # a bifurcation located by one half-branch of a band cell is taken by the other, which saw it
-# too, where it lies on that one's bracket: projected within this fraction of the bracket's
-# chord beyond its ends, and as far from it (bifurcation-diagram coordinates)
+# too, where it lies on that one's bracket: projected onto the chord between the bracket's
+# ends, between them, and no farther from the chord than this fraction of its length (the
+# orbit's state at t = 0 and the parameter, each over its largest magnitude)
 CHORD_SAG = 0.1
 
-# a bifurcation is located when its bracket has shrunk to locate_tol and the test function
-# there is this small against its values at the bracket's first ends (else it jumps there)
+# a bifurcation is located when the regula-falsi correction or its bracket has shrunk to
+# locate_tol and the test function there is this small against its values at the bracket's
+# first ends (else it jumps there)
 JUMP_TOL = 1e-3
 
 

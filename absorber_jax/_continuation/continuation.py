@@ -328,18 +328,20 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
         todo = [(i, j) for i, ((_, bifs, _), _, _) in enumerate(out)
                 for j, b in enumerate(bifs) if isinstance(b, tuple)]
         args = [out[i][0][1][j] for i, j in todo]
-        first, brackets = _shared(args)
+        first, brackets = _shared(args, [i for i, _ in todo])
         own = [k for k, f in enumerate(first) if f == k]
         found = dict(zip(own, _run_batched([_bifurcation(*args[k]) for k in own], base,
                                            method, lanes)))
-        # a shared location outside the other's bracket: another bifurcation of the same
-        # kind nearby, located in turn
+        # a location that failed, or lies off the other's bracket (another bifurcation of
+        # the same kind, or a bracket too curved to tell): located on its own
         again = [k for k, f in enumerate(first) if f != k
                  and not _inside(brackets[k], found[f])]
         found.update(zip(again, _run_batched([_bifurcation(*args[k]) for k in again], base,
                                              method, lanes)))
         for k, (i, j) in enumerate(todo):
-            b = found.get(k, found[first[k]])
+            # a location taken from the other half-branch cost this one no solve
+            b = found[k] if k in found else dataclasses.replace(found[first[k]],
+                                                                evaluations=0)
             out[i][0][1][j] = dataclasses.replace(b, index=args[k][4])
     return _band_result(out, parameter, lo, hi, system)
 

@@ -136,10 +136,10 @@ class _Driver:
         tangent for a zero of the test function of ``kind`` (a generator of corrector
         requests, see ``_follow``).  It stops where the next Illinois correction from the
         last point, or the bracket, is within ``locate_tol``: on a smooth test function the
-        iterates converge superlinearly, the correction bounds the last point's error, and
-        the bracket's far end, which regula falsi pulls in only by halving its value, need
-        not be brought in too (the folds of the hard rigid band: 5-8 solves each instead
-        of 12-16)."""
+        iterates converge superlinearly and the correction estimates the last point's error,
+        so the bracket's far end, which regula falsi pulls in only by halving its value,
+        need not be brought in too (the folds of the hard rigid band of
+        scripts/benchmark_rigid_impacts.py: 3-7 solves each)."""
         lo, hi = 0.0, h
         glo, ghi = _g(kind, a), None
         b = yield (self, a["z"] + h * a["t"], a["t"], False)
@@ -623,18 +623,21 @@ def _bifurcation(drv, kind, a, b, index, locate, h):
 
 def _bracket(args):
     """A deferred bifurcation's bracket (the arguments of ``_bifurcation``): its two ends
-    as ``(amplitude, parameter)``, the bifurcation diagram's picture of the branch,
-    comparable between half-branches whatever their sections and unknowns' scales."""
+    as the public orbit state at ``t = 0`` followed by the parameter, comparable between
+    half-branches whatever their sections and unknowns' scales."""
     drv, _, a, b = args[:4]
     pscale = float(drv.prob.pscale)
-    return tuple(np.array([float(p["ss"].amplitude), float(p["z"][-1]) * pscale])
+    return tuple(np.append(np.asarray(p["ss"].state, dtype=float), float(p["z"][-1]) * pscale)
                  for p in (a, b))
 
 
 def _scaled(*ends):
-    """Points ``(amplitude, parameter)`` each over the largest magnitude of its values."""
-    ref = np.maximum(np.max(np.abs(np.stack(ends)), axis=0), 1e-300)
-    return [p / ref for p in ends]
+    """Bracket ends (``_bracket``): the states over their largest magnitude, the parameter
+    over its own."""
+    ends = np.stack(ends)
+    ref = np.full(ends.shape[1], max(float(np.max(np.abs(ends[:, :-1]))), 1e-300))
+    ref[-1] = max(float(np.max(np.abs(ends[:, -1]))), 1e-300)
+    return list(ends / ref)
 
 
 def _overlap(u, v):
@@ -647,30 +650,41 @@ def _overlap(u, v):
 
 def _inside(bracket, bif):
     """Whether the located bifurcation ``bif`` lies in ``bracket`` (``_bracket``): it
-    projects onto the chord between the bracket's ends, no farther from it than
-    ``CHORD_SAG`` of its length (a branch turning by ``max_angle`` between two points sags
-    from their chord by about an eighth of that angle times the chord)."""
-    a, b, c = _scaled(*bracket, np.array([bif.amplitude, bif.value]))
+    projects onto the chord between the bracket's ends, between them, and lies no farther
+    from the chord than ``CHORD_SAG`` of its length (a heuristic: a smooth branch turning by
+    a small angle θ between two points sags from their chord by about θ/8 of it)."""
+    state = np.asarray(bif.state, dtype=float)
+    if not bif.located or state.shape[0] + 1 != bracket[0].shape[0]:
+        return False
+    a, b, c = _scaled(*bracket, np.append(state, bif.value))
     ab = b - a
     length2 = float(ab @ ab)
     if length2 == 0.0:
         return False
     u = float((c - a) @ ab) / length2
     off = np.linalg.norm(c - a - u * ab)
-    return -CHORD_SAG <= u <= 1 + CHORD_SAG and off <= CHORD_SAG * np.sqrt(length2)
+    return 0.0 <= u <= 1.0 and off <= CHORD_SAG * np.sqrt(length2)
 
 
-def _shared(todo):
-    """For each deferred bifurcation in ``todo`` (the arguments of ``_bifurcation``), the
-    position of the earlier one of the same kind whose bracket overlaps its own, else its
-    own: the two half-branches of a band cell follow one branch from both ends and both
-    see the bifurcations between them.  The first is located; the other takes its location
-    where that lies in its own bracket (``_inside``), else is located in turn."""
+def _shared(todo, owners):
+    """For each deferred bifurcation in ``todo`` (the arguments of ``_bifurcation``; its
+    half-branch ``owners[k]``), the position of an earlier one of the same kind whose
+    bracket overlaps its own, else its own: the two half-branches of a band cell follow one
+    branch from both ends and both see the bifurcations between them, and a half-branch
+    that goes round a loop passes its bifurcations again.  Never two brackets next to each
+    other on one half-branch (two bifurcations there are two); each is matched with at most
+    one of each half-branch.  The first is located; the other takes that location where it
+    lies in its own bracket (``_inside``), else is located in turn.  Returns the positions
+    and the brackets."""
     brackets = [_bracket(args) for args in todo]
-    first = []
+    first, claimed = [], set()
     for k, args in enumerate(todo):
         same = next((m for m in range(k) if first[m] == m and todo[m][1] == args[1]
+                     and (owners[m] != owners[k] or abs(todo[m][4] - args[4]) > 1)
+                     and (m, owners[k]) not in claimed
                      and _overlap(brackets[m], brackets[k])), k)
+        if same != k:
+            claimed.add((same, owners[k]))
         first.append(same)
     return first, brackets
 

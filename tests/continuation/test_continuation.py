@@ -93,6 +93,11 @@ def test_band_continuation_covers_the_band_and_finds_both_folds():
             a1, a2 = b.amplitude[f.index], b.amplitude[f.index + 1]
             assert min(a1, a2) <= f.amplitude <= max(a1, a2), (f, a1, a2)
             assert f.located and min(abs(f.value - w) / w for w in single) < 1e-8, f.value
+    # ... and some fold was seen by two half-branches and located once: the copy spent no
+    # solve and has the located one's value
+    located = {f.value for b in brs for f in b.of_kind("fold") if f.evaluations > 0}
+    shared = [f for b in brs for f in b.of_kind("fold") if f.evaluations == 0]
+    assert shared and all(f.value in located for f in shared)
     # on the half-branch through both folds: stable outside them, unstable between
     two = [b for b in brs if len(b.of_kind("fold")) == 2]
     assert len(two) >= 1

@@ -30,7 +30,8 @@ class Bifurcation(eqx.Module):
     to ``locate_tol`` onto a zero of the test function (False where the bracket closed on a
     jump of it: a grazing corner, where the multipliers leap across the circle);
     ``evaluations``: corrector solves spent locating it (0 where ``band_continuation``
-    took the location from the other half-branch of its cell, which saw it too)."""
+    took the location from another sighting of it: the other half-branch of its cell, or
+    its own half-branch passing it again round a loop)."""
 
     kind: str = eqx.field(static=True)
     value: float

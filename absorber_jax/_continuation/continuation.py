@@ -324,7 +324,7 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
         # the bifurcations of all the half-branches located together (each a few corrector
         # solves in turn: one after the other on its branch, the Hertz band's main pass
         # took 91 rounds of its batch, 37 bifurcations of 1-19 solves each)
-        # (one location for a bifurcation both half-branches of a cell saw: ``_shared``)
+        # (one location for a bifurcation seen twice: ``_shared``)
         todo = [(i, j) for i, ((_, bifs, _), _, _) in enumerate(out)
                 for j, b in enumerate(bifs) if isinstance(b, tuple)]
         args = [out[i][0][1][j] for i, j in todo]
@@ -339,10 +339,9 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
         found.update(zip(again, _run_batched([_bifurcation(*args[k]) for k in again], base,
                                              method, lanes)))
         for k, (i, j) in enumerate(todo):
-            # a location taken from the other half-branch cost this one no solve
-            b = found[k] if k in found else dataclasses.replace(found[first[k]],
-                                                                evaluations=0)
-            out[i][0][1][j] = dataclasses.replace(b, index=args[k][4])
+            # a location taken from the other sighting cost this one no solve
+            b, spent = (found[k], found[k].evaluations) if k in found else (found[first[k]], 0)
+            out[i][0][1][j] = dataclasses.replace(b, index=args[k][4], evaluations=spent)
     return _band_result(out, parameter, lo, hi, system)
 
 

@@ -139,7 +139,7 @@ class _Driver:
         iterates converge superlinearly and the correction estimates the last point's error,
         so the bracket's far end, which regula falsi pulls in only by halving its value,
         need not be brought in too (the folds of the hard rigid band of
-        scripts/benchmark_rigid_impacts.py: 3-7 solves each)."""
+        scripts/benchmark_rigid_impacts.py: 3-13 solves each, most of them 5-7)."""
         lo, hi = 0.0, h
         glo, ghi = _g(kind, a), None
         b = yield (self, a["z"] + h * a["t"], a["t"], False)
@@ -653,10 +653,9 @@ def _inside(bracket, bif):
     projects onto the chord between the bracket's ends, between them, and lies no farther
     from the chord than ``CHORD_SAG`` of its length (a heuristic: a smooth branch turning by
     a small angle θ between two points sags from their chord by about θ/8 of it)."""
-    state = np.asarray(bif.state, dtype=float)
-    if not bif.located or state.shape[0] + 1 != bracket[0].shape[0]:
+    if not bif.located:
         return False
-    a, b, c = _scaled(*bracket, np.append(state, bif.value))
+    a, b, c = _scaled(*bracket, np.append(np.asarray(bif.state, dtype=float), bif.value))
     ab = b - a
     length2 = float(ab @ ab)
     if length2 == 0.0:

@@ -103,10 +103,28 @@ def refined_amplitude(system, forcing, x, cfg, n=1):
     return amp, status
 
 
+def linear_amplitude(system, forcing):
+    """Half peak-to-peak of the observable of a ``linear`` system's periodic response to
+    the harmonic ``forcing`` (``harmonic_response``, no integration): ``|Y|``, ``Y`` the
+    observable's complex amplitude; the internal state at ``t = 0`` and the status
+    (``NONFINITE`` where the response is not finite: an undamped resonance)."""
+    _, X = system.harmonic_response(forcing)
+    x0 = jnp.imag(jnp.sum(X, axis=0))
+    # the observable is linear: its complex amplitude from the real and imaginary parts
+    Y = system.observable(jnp.real(X[0])) + 1j * system.observable(jnp.imag(X[0]))
+    amp = jnp.abs(Y)
+    ok = jnp.isfinite(amp) & jnp.all(jnp.isfinite(x0))
+    return amp, (x0, jnp.where(ok, Status.SUCCESS, Status.NONFINITE))
+
+
 def amplitude_at(system, omega, amplitude, guess, cfg, method):
     """Refined amplitude at ``omega`` on the orbit found from ``guess`` (internal state; NaN:
-    the method's start), the internal orbit state and the status."""
+    the method's start), the internal orbit state and the status.  A ``linear`` system's
+    under a single exact harmonic comes from its closed-form response
+    (``linear_amplitude``; ``guess``, ``cfg`` and the method unused)."""
     forcing = at_frequency(amplitude, omega)
+    if system.linear and forcing.harmonics_exact and len(forcing.harmonics()[0]) == 1:
+        return linear_amplitude(system, forcing)
     res = solve_point(system, forcing, method, cfg, guess=guess, with_floquet=False)
     x_int = system.to_internal(res.state)
     a, st = refined_amplitude(system, forcing, x_int / state_scale(system, forcing), cfg)
@@ -401,6 +419,10 @@ def exact_peak(system, band, *, amplitude, params=(), objective=None, method=Non
       ``max_iter``); default ``ExactPeak()``.
     - ``method``: the ``Shooting`` of each orbit, default ``Shooting(tol=1e-8,
       newton_steps=40)``; ``integrator``: default the design tolerances (1e-10).
+
+    A ``linear`` system (a ``StructuralSystem`` of linear elements) under a harmonic force
+    is not integrated: its amplitudes come from its closed-form response
+    (``harmonic_response``), and ``method`` and ``integrator`` are unused.
 
     ```python
     import absorber_jax as aj

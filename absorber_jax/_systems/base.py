@@ -67,6 +67,24 @@ class AbstractSystem(eqx.Module):
     def linear_guess(self, forcing):
         """A starting orbit for shooting (internal state at ``t = 0``)."""
 
+    @property
+    def linear(self) -> bool:
+        """``True`` when the vector field is linear in the state and in the forcing's value,
+        and the observable linear in the state (a linear structure carrying linear elements
+        only): the periodic response is then ``harmonic_response``'s closed form, and the
+        exact peak objectives evaluate it without integrating.  ``False`` unless a system
+        says otherwise."""
+        return False
+
+    def harmonic_response(self, forcing):
+        """The periodic response of a ``linear`` system to a periodic ``forcing``,
+        ``s(t) = Im Σ_j X_j e^{i k_j ω t}`` over the forcing's harmonics
+        (``forcing.harmonics()``: ``F(t) = Im Σ_j c_j e^{i k_j ω t}``): ``(orders, X)``,
+        ``X`` complex of shape ``(harmonics, num_states)`` (internal state).  Systems
+        that are not ``linear`` raise ``ValueError``."""
+        raise ValueError(f"{type(self).__name__} is not linear: its periodic response has "
+                         "no closed form (use steady_state)")
+
     # -- dynamics ---------------------------------------------------------------------
     @abc.abstractmethod
     def vector_field(self, t, s, forcing):

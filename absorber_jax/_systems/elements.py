@@ -375,9 +375,11 @@ class AbstractLinearElement(AbstractElement):
     """An element whose forces and own states' rates are linear in the displacements,
     velocities and accelerations of its degrees of freedom and in its own states (a tuned
     mass damper; a linear spring or dashpot of your own: subclass this besides your base).
-    With rigid impact elements, and no other kind beside them, a structure's modes stay
-    affine, so its flights between impacts are integrated in closed form (matrix
-    exponentials) instead of by an ODE solver.  It adds no member to implement."""
+    A structure of such elements only is ``linear``: its exact peaks come from its
+    closed-form response (``StructuralSystem.harmonic_response``).  With rigid impact
+    elements, and no other kind beside them, a structure's modes stay affine, so its
+    flights between impacts are integrated in closed form (matrix exponentials) instead of
+    by an ODE solver.  It adds no member to implement."""
 
 
 def is_linear(element) -> bool:

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.legacy import moved
+from .._core.status import Status
 from .._periodic.harmonic import HarmonicBalance
 from .._periodic.shooting import Shooting
 from .._periodic.steady import method_from, solve_point
@@ -88,13 +89,31 @@ class Reparam(eqx.Module):
         return jnp.where(self.identity, p, u)
 
 
+def linear_amplitude(system, forcing):
+    """Half peak-to-peak of the observable of a ``linear`` system's periodic response to
+    the harmonic ``forcing`` (``harmonic_response``, no integration): ``|Y|``, ``Y`` the
+    observable's complex amplitude; the internal state at ``t = 0`` and the status
+    (``NONFINITE`` where the response is not finite: an undamped resonance)."""
+    _, X = system.harmonic_response(forcing)
+    x0 = jnp.imag(jnp.sum(X, axis=0))
+    # the observable is linear: its complex amplitude from the real and imaginary parts
+    Y = system.observable(jnp.real(X[0])) + 1j * system.observable(jnp.imag(X[0]))
+    amp = jnp.abs(Y)
+    ok = jnp.isfinite(amp) & jnp.all(jnp.isfinite(x0))
+    return amp, (x0, jnp.where(ok, Status.SUCCESS, Status.NONFINITE))
+
+
 def band_amplitudes(system, omegas, amplitude, guesses, cfg, method):
     """Steady primary amplitudes at ``omegas`` (vmapped ``method``: the design's shooting, or
     a ``HarmonicBalance``; differentiable in forward mode, implicitly through each orbit
-    solve). ``guesses``: internal states (NaN: use the linear guess)."""
+    solve; a ``linear`` system's from its closed-form response, ``linear_amplitude``).
+    ``guesses``: internal states (NaN: use the linear guess)."""
 
     def one(w, g):
         forcing = Harmonic(amplitude=amplitude, omega=w)
+        if system.linear:
+            a, (x, status) = linear_amplitude(system, forcing)
+            return a, x, status, jnp.ones((), int)
         res = solve_point(system, forcing, method, cfg, guess=g, with_floquet=False)
         return res.amplitude, system.to_internal(res.state), res.status, res.period_multiple
 

@@ -44,7 +44,14 @@ from .._periodic.orbit import sample_orbit
 from .._periodic.steady import check_system_and_forcing, make_config, solve_point
 from .._systems.forcing import Harmonic, at_frequency, sweep_shape
 from .._systems.params import get_param, replace_params
-from .base import Reparam, check_design, design_method, legacy_objective, shooting_for_design
+from .base import (
+    Reparam,
+    check_design,
+    design_method,
+    legacy_objective,
+    linear_amplitude,
+    shooting_for_design,
+)
 from .objectives import ExactPeak
 
 # kinds of a peak slot
@@ -101,20 +108,6 @@ def refined_amplitude(system, forcing, x, cfg, n=1):
     h = ts[1] - ts[0]
     amp = 0.5 * (_extreme(y, d, c, h) + _extreme(-y, -d, -c, h))
     return amp, status
-
-
-def linear_amplitude(system, forcing):
-    """Half peak-to-peak of the observable of a ``linear`` system's periodic response to
-    the harmonic ``forcing`` (``harmonic_response``, no integration): ``|Y|``, ``Y`` the
-    observable's complex amplitude; the internal state at ``t = 0`` and the status
-    (``NONFINITE`` where the response is not finite: an undamped resonance)."""
-    _, X = system.harmonic_response(forcing)
-    x0 = jnp.imag(jnp.sum(X, axis=0))
-    # the observable is linear: its complex amplitude from the real and imaginary parts
-    Y = system.observable(jnp.real(X[0])) + 1j * system.observable(jnp.imag(X[0]))
-    amp = jnp.abs(Y)
-    ok = jnp.isfinite(amp) & jnp.all(jnp.isfinite(x0))
-    return amp, (x0, jnp.where(ok, Status.SUCCESS, Status.NONFINITE))
 
 
 def amplitude_at(system, omega, amplitude, guess, cfg, method):

@@ -25,7 +25,7 @@ from .._core.checks import as_float, nonnegative, positive
 from .._laws.contact import AbstractContactLaw
 from .._laws.friction import AbstractFrictionLaw
 from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
-from .base import AbstractHybridSystem
+from .base import AbstractHybridSystem, not_linear
 from .linear import _internal, finite_or_zero, harmonic_response, state_at_zero, two_mass_matrices
 
 # a rigid-impact absorber counts as stuck at a wall at the start of an integration when
@@ -65,6 +65,13 @@ class AbstractAbsorberSystem(AbstractHybridSystem):
     @property
     def num_states(self) -> int:
         return 4 + self.num_law_states
+
+    @property
+    def linear(self) -> bool:
+        return False            # a contact or friction law couples the two masses
+
+    def harmonic_response(self, forcing):
+        raise not_linear(self)
 
     def prepared(self):
         return self     # two masses: nothing worth computing ahead

@@ -68,22 +68,20 @@ class AbstractSystem(eqx.Module):
         """A starting orbit for shooting (internal state at ``t = 0``)."""
 
     @property
+    @abc.abstractmethod
     def linear(self) -> bool:
         """``True`` when the vector field is linear in the state and in the forcing's value,
         and the observable linear in the state (a linear structure carrying linear elements
         only): the periodic response is then ``harmonic_response``'s closed form, and the
-        exact peak objectives evaluate it without integrating.  ``False`` unless a system
-        says otherwise."""
-        return False
+        design objectives evaluate it without integrating."""
 
+    @abc.abstractmethod
     def harmonic_response(self, forcing):
         """The periodic response of a ``linear`` system to a periodic ``forcing``,
         ``s(t) = Im Σ_j X_j e^{i k_j ω t}`` over the forcing's harmonics
         (``forcing.harmonics()``: ``F(t) = Im Σ_j c_j e^{i k_j ω t}``): ``(orders, X)``,
-        ``X`` complex of shape ``(harmonics, num_states)`` (internal state).  Systems
-        that are not ``linear`` raise ``ValueError``."""
-        raise ValueError(f"{type(self).__name__} is not linear: its periodic response has "
-                         "no closed form (use steady_state)")
+        ``X`` complex of shape ``(harmonics, num_states)`` (internal state).  A system
+        that is not ``linear`` raises ``ValueError``."""
 
     # -- dynamics ---------------------------------------------------------------------
     @abc.abstractmethod
@@ -243,6 +241,12 @@ class AbstractHybridSystem(AbstractSystem):
     @abc.abstractmethod
     def in_contact(self, mode):
         """Whether a contact is held closed in ``mode`` (time in contact)."""
+
+
+def not_linear(system):
+    """The ``ValueError`` of ``harmonic_response`` on a system that is not ``linear``."""
+    return ValueError(f"{type(system).__name__} is not linear: its periodic response has no "
+                      "closed form (use steady_state)")
 
 
 def is_hybrid(system) -> bool:

@@ -30,7 +30,7 @@ import numpy as np
 from .._core import units
 from .._core.checks import is_traced
 from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
-from .base import AbstractHybridSystem
+from .base import AbstractHybridSystem, not_linear
 from .elements import AbstractElement, is_exact, is_linear, is_rigid
 from .linear import finite_or_zero
 from .structure import LinearStructure
@@ -790,31 +790,19 @@ class StructuralSystem(AbstractHybridSystem):
     def linear(self) -> bool:
         return not self.hybrid and all(is_linear(e) for e in self.elements)
 
-    def _responses_at_rest(self, forcing):
-        """``(orders, X)``: the responses ``X_j = (i k_j ω I - A)⁻¹ b c_j`` of the system
-        linearised at rest (``A = ∂ṡ/∂s``, ``b = ∂ṡ/∂F``) to the harmonics ``F = Im Σ_j c_j
-        e^{i k_j ω t}`` of ``forcing``, one row each."""
-        rest = self.rest_state()
-        A = jax.jacfwd(self._rate)(rest, 0.0)
-        b = jax.jacfwd(self._rate, argnums=1)(rest, 0.0)
-        orders, coefficients = forcing.harmonics()
-        eye = jnp.eye(A.shape[0])
-
-        def response(w, c):
-            # c e^{iwt} -> X e^{iwt}
-            return jnp.linalg.solve(1j * w * eye - A, (b * c).astype(complex))
-
-        w = forcing.omega * jnp.asarray(orders, dtype=float)
-        return orders, jax.vmap(response)(w, jnp.asarray(coefficients, dtype=complex))
-
     def harmonic_response(self, forcing):
         """``(orders, X)``: the response ``s(t) = Im Σ_j X_j e^{i k_j ω t}`` of this linear
         system (``linear``) to the harmonics ``F = Im Σ_j c_j e^{i k_j ω t}`` of
-        ``forcing``, ``X_j = (i k_j ω I - A)⁻¹ b c_j`` with ``A = ∂ṡ/∂s`` and ``b = ∂ṡ/∂F``
+        ``forcing``: ``X_j = (i k_j ω I - A)⁻¹ b c_j``, ``A = ∂ṡ/∂s`` and ``b = ∂ṡ/∂F``
         (exact: the rate is linear).  Differentiable in the system's parameters and ω."""
         if not self.linear:
-            return super().harmonic_response(forcing)
-        return self._responses_at_rest(forcing)
+            raise not_linear(self)
+        A, b = jax.jacfwd(self._rate, argnums=(0, 1))(self.rest_state(), 0.0)
+        orders, coefficients = forcing.harmonics()
+        Z = (1j * forcing.omega * jnp.asarray(orders, dtype=float)[:, None, None]
+             * jnp.eye(A.shape[0]) - A)
+        return orders, jnp.linalg.solve(Z, (jnp.asarray(coefficients, dtype=complex)[:, None]
+                                            * b)[..., None])[..., 0]
 
     @eqx.filter_jit
     def linear_guess(self, forcing):
@@ -824,8 +812,19 @@ class StructuralSystem(AbstractHybridSystem):
         harmonic the linearisation cannot respond to (a floating absorber under a constant
         load) is left out.  One compiled program (not op by op: a first call in a new
         process would compile every operation of the rate's Jacobian on its own)."""
-        _, X = self._responses_at_rest(forcing)
-        return jnp.sum(jax.vmap(lambda x: finite_or_zero(jnp.imag(x)))(X), axis=0)
+        rest = self.rest_state()
+        A = jax.jacfwd(self._rate)(rest, 0.0)
+        b = jax.jacfwd(self._rate, argnums=1)(rest, 0.0)
+        n = A.shape[0]
+        orders, coefficients = forcing.harmonics()
+
+        def response(w, c):
+            # c e^{iwt} -> X e^{iwt}; the forcing is Im(Σ c e^{iwt})
+            X = jnp.linalg.solve(1j * w * jnp.eye(n) - A, (b * c).astype(complex))
+            return finite_or_zero(jnp.imag(X))
+
+        w = forcing.omega * jnp.asarray(orders, dtype=float)
+        return jnp.sum(jax.vmap(response)(w, jnp.asarray(coefficients, dtype=complex)), axis=0)
 
     def stiffness_rate(self):
         st = self.structure

@@ -144,8 +144,10 @@ def test_exact_peak_of_a_linear_structure_is_its_closed_form_and_tunes_to_h_infi
     """A structure of linear elements is ``linear``: ``exact_peak`` evaluates its closed-form
     response (no integration).  The located peak, its frequency and its gradient against the
     receptance of reference_hinf (Brent to 1e-13) and its central differences; the amplitude
-    there against a shooting sweep; ``tune`` at its defaults from 5 % detuned with half the
-    damping reaches the H-infinity optimum (the test above: through the integrator)."""
+    there against a shooting sweep; the smooth band peak of ``value_and_grad`` and its
+    gradient against the same damper integrated; ``tune`` at its defaults from 5 % detuned
+    with half the damping reaches the H-infinity optimum (as the integrated damper does in
+    test_tune_at_its_defaults_reaches_the_h_infinity_optimum)."""
     mu = 0.05
     f_ref, z_ref, peak_ref = h_infinity(mu)
     f0, z0 = 1.05 * f_ref, 0.5 * z_ref
@@ -176,6 +178,15 @@ def test_exact_peak_of_a_linear_structure_is_its_closed_form_and_tunes_to_h_infi
     fr = aj.frequency_response(system, [res.omega], amplitude=1.0)
     assert int(fr.status[0]) == 0
     np.testing.assert_allclose(float(fr.amplitude[0]), res.value, rtol=1e-7)
+    # the grid objectives too: the smooth band peak and its gradient, closed form against
+    # the same damper integrated (``tmd``: an ImpactAbsorber with no gap, not linear)
+    om = np.linspace(*band, 8)
+    v_lin, g_lin, st_lin = aj.value_and_grad(system, ["tmd1.k", "tmd1.c"], om, amplitude=1.0)
+    v_sh, g_sh, st_sh = aj.value_and_grad(tmd(mu, f0, z0), ["k1", "c1"], om, amplitude=1.0)
+    assert np.all(np.asarray(st_lin) == 0) and np.all(np.asarray(st_sh) == 0)
+    np.testing.assert_allclose(v_lin, v_sh, rtol=1e-6)
+    np.testing.assert_allclose([g_lin["tmd1.k"], g_lin["tmd1.c"]], [g_sh["k1"], g_sh["c1"]],
+                               rtol=1e-5)
     tuned, hist = aj.tune(system, ["tmd1.k", "tmd1.c"], band, amplitude=1.0, confirm=False)
     k1, c1 = float(aj.get_param(tuned, "tmd1.k")), float(aj.get_param(tuned, "tmd1.c"))
     f, z = np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m))

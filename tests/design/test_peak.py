@@ -140,16 +140,15 @@ def _linear_tmd(mu, f, zeta):
         st, [aj.TunedMassDamper("x1", m=m, k=ka, c=2 * zeta * np.sqrt(ka * m))], load="x1")
 
 
-def test_exact_peak_of_a_linear_structure_is_its_closed_form_and_tunes_to_h_infinity():
+def test_design_objectives_of_a_linear_structure_are_its_closed_form():
     """A structure of linear elements is ``linear``: ``exact_peak`` evaluates its closed-form
     response (no integration).  The located peak, its frequency and its gradient against the
     receptance of reference_hinf (Brent to 1e-13) and its central differences; the amplitude
     there against a shooting sweep; the smooth band peak of ``value_and_grad`` and its
-    gradient against the same damper integrated; ``tune`` at its defaults from 5 % detuned
-    with half the damping reaches the H-infinity optimum (as the integrated damper does in
-    test_tune_at_its_defaults_reaches_the_h_infinity_optimum)."""
+    gradient against the same damper integrated.  (Tuning to the H-infinity optimum:
+    test_tune_at_its_defaults_reaches_the_h_infinity_optimum.)"""
     mu = 0.05
-    f_ref, z_ref, peak_ref = h_infinity(mu)
+    f_ref, z_ref = nishihara_asami(mu)
     f0, z0 = 1.05 * f_ref, 0.5 * z_ref
     system = _linear_tmd(mu, f0, z0)
     assert system.linear and not tmd(mu, f0, z0).linear
@@ -187,11 +186,6 @@ def test_exact_peak_of_a_linear_structure_is_its_closed_form_and_tunes_to_h_infi
     np.testing.assert_allclose(v_lin, v_sh, rtol=1e-6)
     np.testing.assert_allclose([g_lin["tmd1.k"], g_lin["tmd1.c"]], [g_sh["k1"], g_sh["c1"]],
                                rtol=1e-5)
-    tuned, hist = aj.tune(system, ["tmd1.k", "tmd1.c"], band, amplitude=1.0, confirm=False)
-    k1, c1 = float(aj.get_param(tuned, "tmd1.k")), float(aj.get_param(tuned, "tmd1.c"))
-    f, z = np.sqrt(k1 / m) / WN, c1 / (2 * np.sqrt(k1 * m))
-    np.testing.assert_allclose((f, z), (f_ref, z_ref), rtol=1e-3)
-    np.testing.assert_allclose(min(hist["objective"]) * K, peak_ref, rtol=1e-3)
 
 
 def _check_the_h_infinity_optimum(mu, band):

@@ -89,15 +89,22 @@ class Reparam(eqx.Module):
         return jnp.where(self.identity, p, u)
 
 
+def closed_form(system, forcing):
+    """Whether ``system``'s amplitude under ``forcing`` comes from ``linear_amplitude``: a
+    ``linear`` system under a single exact harmonic."""
+    return (system.linear and forcing.harmonics_exact
+            and len(forcing.harmonics()[0]) == 1)
+
+
 def linear_amplitude(system, forcing):
     """Half peak-to-peak of the observable of a ``linear`` system's periodic response to
     the harmonic ``forcing`` (``harmonic_response``, no integration): ``|Y|``, ``Y`` the
     observable's complex amplitude; the internal state at ``t = 0`` and the status
     (``NONFINITE`` where the response is not finite: an undamped resonance)."""
-    _, X = system.harmonic_response(forcing)
-    x0 = jnp.imag(jnp.sum(X, axis=0))
+    X = system.harmonic_response(forcing)[1][0]
+    x0 = jnp.imag(X)
     # the observable is linear: its complex amplitude from the real and imaginary parts
-    Y = system.observable(jnp.real(X[0])) + 1j * system.observable(jnp.imag(X[0]))
+    Y = system.observable(jnp.real(X)) + 1j * system.observable(x0)
     amp = jnp.abs(Y)
     ok = jnp.isfinite(amp) & jnp.all(jnp.isfinite(x0))
     return amp, (x0, jnp.where(ok, Status.SUCCESS, Status.NONFINITE))
@@ -111,7 +118,7 @@ def band_amplitudes(system, omegas, amplitude, guesses, cfg, method):
 
     def one(w, g):
         forcing = Harmonic(amplitude=amplitude, omega=w)
-        if system.linear:
+        if closed_form(system, forcing):
             a, (x, status) = linear_amplitude(system, forcing)
             return a, x, status, jnp.ones((), int)
         res = solve_point(system, forcing, method, cfg, guess=g, with_floquet=False)

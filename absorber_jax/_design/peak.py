@@ -47,6 +47,7 @@ from .._systems.params import get_param, replace_params
 from .base import (
     Reparam,
     check_design,
+    closed_form,
     design_method,
     legacy_objective,
     linear_amplitude,
@@ -116,7 +117,7 @@ def amplitude_at(system, omega, amplitude, guess, cfg, method):
     under a single exact harmonic comes from its closed-form response
     (``linear_amplitude``; ``guess``, ``cfg`` and the method unused)."""
     forcing = at_frequency(amplitude, omega)
-    if system.linear and forcing.harmonics_exact and len(forcing.harmonics()[0]) == 1:
+    if closed_form(system, forcing):
         return linear_amplitude(system, forcing)
     res = solve_point(system, forcing, method, cfg, guess=guess, with_floquet=False)
     x_int = system.to_internal(res.state)

@@ -69,16 +69,37 @@ def march_then_shoot(system, forcing, cfg, shooting: Shooting, *, with_floquet=T
     Newton from the linear guess is not globally convergent on the piecewise-smooth period
     map of a sticking absorber (it wandered for 40 steps near the best normal force);
     marching is, for a stable orbit."""
+    ma, xm = march_from_rest(system, forcing, cfg, with_floquet=with_floquet, marching=marching)
+    sh = shooting.solve(system, forcing, xm, cfg, with_floquet=with_floquet)
+    return polished(ma, sh, shooting.n)
+
+
+def march_from_rest(system, forcing, cfg, *, with_floquet=True, marching=None):
+    """``march_then_shoot``'s march (``RETRY_MARCH_PERIODS`` periods at most, from rest):
+    its result and the marched state, scaled, to polish from (the rest state where the
+    march gave no finite state)."""
     marching = Marching(max_periods=RETRY_MARCH_PERIODS) if marching is None else marching
     scale = state_scale(system, forcing)
     x0 = system.rest_state() / scale
     ma = marching.solve(system, forcing, x0, cfg, with_floquet=with_floquet)
     xm = system.to_internal(ma.state) / scale
-    xm = jnp.where(jnp.all(jnp.isfinite(xm)), xm, x0)
-    sh = shooting.solve(system, forcing, xm, cfg, with_floquet=with_floquet)
+    return ma, jnp.where(jnp.all(jnp.isfinite(xm)), xm, x0)
+
+
+def polished(ma, sh, n, xp=jnp):
+    """``march_then_shoot``'s choice between the march ``ma`` and the shooting ``sh`` from
+    its state (period multiple ``n``): the shot where it converged with the marched period
+    multiple (or the march failed), else the march; the iterations of both add up.
+    ``xp``: ``jnp`` (traced results) or ``numpy`` (results of a batch, points first)."""
     use_shot = (sh.status == Status.SUCCESS) & ((ma.status != Status.SUCCESS)
-                                                | (ma.period_multiple == shooting.n))
-    out = jax.tree_util.tree_map(lambda a, b: jnp.where(use_shot, a, b), sh, ma)
+                                                | (ma.period_multiple == n))
+
+    def pick(a, b):
+        a, b = xp.asarray(a), xp.asarray(b)
+        return xp.where(xp.reshape(use_shot, use_shot.shape + (1,) * (a.ndim - use_shot.ndim)),
+                        a, b)
+
+    out = jax.tree_util.tree_map(pick, sh, ma)
     return eqx.tree_at(lambda r: r.iterations, out, sh.iterations + ma.iterations)
 
 

@@ -107,7 +107,8 @@ def _one_point(system, omega, amplitude, guess, cfg, method, with_floquet):
                        with_floquet=with_floquet)
 
 
-# failed shooting points are retried in vmapped batches of this size (one compilation)
+# points per resume call, and per retry call where the lanes are vmapped (one compilation;
+# lanes one after the other: the first pass's batch, see _finish_stragglers)
 RETRY_BATCH = 8
 # Newton steps of the vmapped first pass: a lane still iterating then is resumed from its
 # best iterate with the rest of the budget, in a small batch, so that the whole chunk does
@@ -138,7 +139,7 @@ def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floqu
 @eqx.filter_jit
 def _march_chunk(system, omegas, amplitude, pvals, cfg, names, with_floquet, live):
     """``march_from_rest`` at each lane's frequency and parameter values: the marches of
-    ``march_then_shoot``, whose polishing shots run in a program the sweep has already
+    ``march_then_shoot``, whose polishing shots run in programs the sweep already has
     (``_finish_stragglers``); their results and the marched internal states."""
     def point(w, pv):
         sysp, forcp = _with(system, names, pv), _forcing(amplitude, w)
@@ -184,12 +185,14 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
     Given the first pass's method ``first``, batch ``size`` and devices ``ndev`` (points
     solved independently, lanes one after the other, so that a padding lane costs
     nothing), the retry's marches run in a program of their own and its polishing shots
-    in one already built: the first pass's (``rest`` None: it had the whole budget) or the
-    resume's (the rest of the budget), rather than a march-then-shoot program holding a
-    third copy of the shooting solve (the rigid-ball building of
-    scripts/benchmark_rigid_impacts.py, compilation cache off: the marches traced and
-    compiled in 37 s against 81 s for march-then-shoot, the first call 123 s against 176 s,
-    every result the same)."""
+    in those already built, as the sweep's own points: the first pass's, then the
+    resume's for the rest of the Newton budget, rather than a march-then-shoot program
+    holding a third copy of the shooting solve (the rigid-ball building of
+    scripts/benchmark_rigid_impacts.py, compilation cache off, one machine: the marches
+    traced and compiled in 37-46 s against 81 s for march-then-shoot, the first call
+    123-148 s against 176 s; the same statuses, impacts and stability labels, amplitudes
+    equal to 2e-15, a retried point's Newton count up to 5 more: the resume restarts from
+    the first pass's best iterate)."""
     res = jax.tree_util.tree_map(np.array, res)  # writable copies
 
     def guesses(p, states):
@@ -211,17 +214,20 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
     ma, xm = by_parts(bad, size, lambda p, live, d: _march_chunk(
         system, put(W[p], d), amp, put(PV[p], d), cfg, names, with_floquet, put(live, d)),
                       ndev, progress)
-    if rest is None:
-        sh = by_parts(np.arange(bad.size), size, lambda j, live, d: _parallel_chunk(
-            system, put(W[bad[j]], d), amp, put(PV[bad[j]], d), put(xm[j], d), cfg, first,
-            names, with_floquet, put(live, d)), ndev)
-    else:
-        # the shots' count from zero: ``polished`` adds the march's, ``_written`` the passes'
-        blank = jax.tree_util.tree_map(lambda a: np.array(a[bad]), res)
-        blank = eqx.tree_at(lambda r: r.iterations, blank, np.zeros_like(blank.iterations))
-        sh = _in_batches(blank, np.arange(bad.size), lambda j, live: _parallel_chunk(
-            system, jnp.asarray(W[bad[j]]), amp, jnp.asarray(PV[bad[j]]), jnp.asarray(xm[j]),
-            cfg, rest, names, with_floquet, live), "retry", progress, _retry_batch(system))
+    # the whole Newton budget, as the sweep's own points had it: the first pass's, then
+    # (the marched points still iterating) the rest of it in the resume's program
+    shot = by_parts(np.arange(bad.size), size, lambda j, live, d: _parallel_chunk(
+        system, put(W[bad[j]], d), amp, put(PV[bad[j]], d), put(xm[j], d), cfg, first,
+        names, with_floquet, put(live, d)), ndev)
+    sh = shot
+    if rest is not None:
+        slow = np.flatnonzero(shot.status == Status.NO_CONVERGENCE)
+        sh = _in_batches(jax.tree_util.tree_map(np.array, shot), slow, lambda j, live:
+                         _parallel_chunk(system, jnp.asarray(W[bad[j]]), amp,
+                                         jnp.asarray(PV[bad[j]]),
+                                         guesses(bad[j], shot.state[j]), cfg, rest, names,
+                                         with_floquet, live),
+                         "retry", progress, _retry_batch(system))
     return _written(res, bad, polished(ma, sh, method.n, np))
 
 

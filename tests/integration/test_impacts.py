@@ -118,44 +118,43 @@ def test_sweep_under_vmap_equals_single_solves():
         assert fr.impacts[i] == float(one.impacts)
 
 
-def test_a_rigid_sweep_resumes_and_retries_in_its_first_pass_program(monkeypatch):
+def test_a_rigid_sweep_retries_in_its_own_shooting_programs(monkeypatch):
     # lanes one after the other (event-driven): the retry marches in a program of its own
-    # and polishes the marched orbits in the shooting program the sweep already has (the
-    # first pass's, or the resume's); the march-then-shoot program is never built
+    # and polishes the marched orbits in the shooting programs the sweep already has (the
+    # first pass's, then the resume's for the rest of the Newton budget); the
+    # march-then-shoot program is never built.  Marching settles only on attractors: what
+    # it finds is stable (the 4-impact orbit at 37.5 rad/s the first pass found), or it is
+    # flagged (no period within n_max) where the first pass's orbits are unstable
     from absorber_jax._periodic import sweep as _sweep
 
     omegas = np.array([25.0, 37.5, 40.0, 45.0])
     full = aj.frequency_response(rigid(), omegas, amplitude=F0)
     assert np.all(np.asarray(full.status) == 0), full.failures()
+    assert full.stable[1] and full.impacts[1] == 4.0
 
     def refused(*args, **kwargs):
         raise AssertionError("the march-then-shoot program was built")
 
     monkeypatch.setattr(_sweep, "retry_chunk", refused)
+    three = aj.Shooting(newton_steps=3)     # too few from the linear guess: all retried
+    # a small sweep's first pass has the whole budget: the polish in its program alone
+    whole = aj.frequency_response(rigid(), omegas, amplitude=F0, method=three)
+    # a large sweep's first pass one step, the resume two: the polish in both, in turn
     monkeypatch.setattr(_sweep, "SMALL_CHUNK", 0)
     monkeypatch.setattr(_sweep, "FIRST_PASS_NEWTON", 1)
-    # a first pass of one Newton step, the points still iterating resumed from their best
-    # iterate with the rest of the budget: the same orbits
-    resumed = aj.frequency_response(rigid(), omegas, amplitude=F0)
-    assert np.all(np.asarray(resumed.status) == 0), resumed.failures()
-    assert np.any(np.asarray(resumed.iterations) > 1)
-    np.testing.assert_allclose(resumed.amplitude, full.amplitude, rtol=1e-9)
-    np.testing.assert_allclose(np.asarray(resumed.states), np.asarray(full.states),
-                               atol=1e-9 * float(np.max(np.abs(np.asarray(full.states)))))
-    # a budget of three Newton steps leaves every point unsolved: each is marched from
-    # rest and the march polished; marching settles only on attractors, so what it finds
-    # is stable: the stable 4-impact orbit at 37.5 rad/s the first pass found, a stable
-    # orbit or a flagged failure (no period within n_max) where the first pass's is unstable
-    rescued = aj.frequency_response(rigid(), omegas, amplitude=F0,
-                                    method=aj.Shooting(newton_steps=3))
-    status = np.asarray(rescued.status)
-    assert np.all(np.asarray(rescued.iterations) > 100)          # all marched
-    assert status[1] == 0 and full.stable[1] and full.impacts[1] == 4.0
-    np.testing.assert_allclose(rescued.amplitude[1], full.amplitude[1], rtol=1e-7)
-    assert rescued.impacts[1] == 4.0
-    assert np.all(rescued.stable[status == 0])
-    assert set(status[status != 0]) <= {aj.Status.NOT_PERIODIC}
-    assert all("not periodic" in why for _, why in rescued.failures())
+    split = aj.frequency_response(rigid(), omegas, amplitude=F0, method=three)
+    for rescued in (whole, split):
+        status = np.asarray(rescued.status)
+        assert np.all(np.asarray(rescued.iterations) > 100)          # all marched
+        assert status[1] == 0
+        np.testing.assert_allclose(rescued.amplitude[1], full.amplitude[1], rtol=1e-7)
+        assert rescued.impacts[1] == 4.0
+        assert np.all(rescued.stable[status == 0])
+        assert set(status[status != 0]) <= {aj.Status.NOT_PERIODIC}
+    # the same marches, the same Newton budget: the same results
+    np.testing.assert_array_equal(np.asarray(split.status), np.asarray(whole.status))
+    ok = np.asarray(whole.status) == 0
+    np.testing.assert_allclose(split.amplitude[ok], whole.amplitude[ok], rtol=1e-9)
 
 
 def test_vmapped_lanes_each_follow_their_own_events():

@@ -194,7 +194,7 @@ def test_failed_shooting_is_retried_by_marching_then_polished():
     # test_steady.test_failed_points_are_flagged_and_others_kept, and the exact flow under
     # vmap in test_exact_mode_runs_under_vmap_with_per_point_status; an event-driven
     # sweep's retry, marched apart and polished in the sweep's own shooting program, in
-    # test_impacts.test_a_rigid_sweep_resumes_and_retries_in_its_first_pass_program: a
+    # test_impacts.test_a_rigid_sweep_retries_in_its_own_shooting_programs: a
     # sweep of this scene here would compile two more programs of the exact flow)
     system = aj.FrictionAbsorber(m1=1.0, k1=1e4, c1=2.0, m2=0.2, k2=1.8e3, c2=0.0,
                                  normal_force=6.58, friction=aj.Coulomb(mu=0.5))

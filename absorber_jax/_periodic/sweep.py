@@ -199,11 +199,18 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
         return jnp.asarray(np.stack([np.asarray(_with(system, names, PV[i]).to_internal(x))
                                      for i, x in zip(p, states)]))
 
+    def resumed(out, points, desc):
+        # ``rest`` on the rows of ``out`` still iterating (``points``: each row's point),
+        # from their best iterates
+        slow = np.flatnonzero(out.status == Status.NO_CONVERGENCE)
+        states = np.array(out.state)
+        return _in_batches(out, slow, lambda j, live: _parallel_chunk(
+            system, jnp.asarray(W[points[j]]), amp, jnp.asarray(PV[points[j]]),
+            guesses(points[j], states[j]), cfg, rest, names, with_floquet, live), desc,
+            progress, _retry_batch(system))
+
     if rest is not None:
-        slow = np.flatnonzero(res.status == Status.NO_CONVERGENCE)
-        res = _in_batches(res, slow, lambda p, live: _parallel_chunk(
-            system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), guesses(p, res.state[p]), cfg,
-            rest, names, with_floquet, live), "resume", progress, _retry_batch(system))
+        res = resumed(res, np.arange(W.shape[0]), "resume")
     if not method.retry:
         return res
     bad = np.flatnonzero(res.status != Status.SUCCESS)
@@ -219,16 +226,9 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
     shot = by_parts(np.arange(bad.size), size, lambda j, live, d: _parallel_chunk(
         system, put(W[bad[j]], d), amp, put(PV[bad[j]], d), put(xm[j], d), cfg, first,
         names, with_floquet, put(live, d)), ndev)
-    sh = shot
     if rest is not None:
-        slow = np.flatnonzero(shot.status == Status.NO_CONVERGENCE)
-        sh = _in_batches(jax.tree_util.tree_map(np.array, shot), slow, lambda j, live:
-                         _parallel_chunk(system, jnp.asarray(W[bad[j]]), amp,
-                                         jnp.asarray(PV[bad[j]]),
-                                         guesses(bad[j], shot.state[j]), cfg, rest, names,
-                                         with_floquet, live),
-                         "retry", progress, _retry_batch(system))
-    return _written(res, bad, polished(ma, sh, method.n, np))
+        shot = resumed(jax.tree_util.tree_map(np.array, shot), bad, "retry")
+    return _written(res, bad, polished(ma, shot, method.n, np))
 
 
 def _written(res, idx, out):

@@ -10,6 +10,7 @@ then give each device its own parts (``on_devices``) and the cores run them side
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import queue
 import threading
@@ -224,9 +225,21 @@ def device_parts(size):
 
 def one_blas_thread(ndev):
     """A context holding BLAS (OpenBLAS, under XLA's LAPACK calls) to one thread while
-    ``ndev > 1`` devices run (see ``on_devices``); a no-op on one device."""
+    ``ndev > 1`` devices run (see ``on_devices``); a no-op on one device.  The BLAS
+    libraries are found once per process (``_blas``): a search of the loaded libraries at
+    every call cost 1.3 ms, around each of the hundreds of batched corrector calls of a
+    band on two devices."""
     if ndev <= 1:
         return contextlib.nullcontext()
-    from threadpoolctl import threadpool_limits
+    return _blas().limit(limits=1, user_api="blas")
 
-    return threadpool_limits(limits=1, user_api="blas")
+
+@functools.cache
+def _blas():
+    """The process's ``threadpoolctl.ThreadpoolController``, made once SciPy's linear
+    algebra (whose OpenBLAS XLA's LAPACK kernels call) is loaded, so that it holds that
+    library too."""
+    import scipy.linalg  # noqa: F401  (loads the OpenBLAS that XLA's LAPACK calls use)
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()

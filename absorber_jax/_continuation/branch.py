@@ -60,8 +60,9 @@ class Branch(SteadyResults, eqx.Module):
     ...); ``bifurcations``: the [`Bifurcation`][absorber_jax.Bifurcation]s found, in branch order;
     ``termination``: why the branch ended (``"bounds"``, ``"rejoined"``, ``"closed"``: it
     went where it was asked to, ``reached`` is True; ``"closed"``: back at its first point,
-    or through two grazings in a row that it had passed before, one after the other, so
-    that going on would retrace it; ``"max_points"``, ``"step_collapse"``,
+    back on a part of itself it had followed already (going the same way, with as many
+    impacts), or through two grazings in a row that it had passed before, one after the
+    other, so that going on would retrace it; ``"max_points"``, ``"step_collapse"``,
     ``"grazing"``: a grazing it located but could not continue through, or
     ``"start_failed"``: it did not, and ``ending()`` says why and what to try);
     corrector iterations per point are ``iterations``.  The measured fields are NaN at

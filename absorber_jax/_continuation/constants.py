@@ -25,6 +25,9 @@ GRAZING_STEPS = (0.05, 0.3, 1.0)
 # a located grazing within this (relative) of one the branch passed already, in parameter
 # value and state, closes a loop: the branch ends "closed"
 LOOP_TOL = 1e-6
+# a branch point within this fraction of an earlier chord's length off it (projecting
+# inside it, going the same way) retraces the branch: it ends "closed" (driver._retraced)
+RETRACE = 0.05
 # branch points looked back over for the last one clear of the walls
 GRAZING_LOOKBACK = 12
 # samples per period of the orbit whose closest approach to the walls is measured (each

@@ -45,6 +45,7 @@ from .constants import (
     RESECTION,
     RESECTION_SAME,
     RESECTION_TANGENT,
+    RETRACE,
 )
 from .events import _events, _g
 from .problem import (
@@ -83,9 +84,11 @@ class _Driver:
         scale at its parameter value."""
         ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
         z = np.asarray(z)
+        count = float(ss.impacts) * int(ss.period_multiple)
         return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, xi=z[:-1] * np.asarray(self.prob.s0),
                     x0=sec.at_zero, mult=np.asarray(ss.multipliers),
-                    ok=int(ss.status) == Status.SUCCESS, sc=np.asarray(sc))
+                    ok=int(ss.status) == Status.SUCCESS, sc=np.asarray(sc),
+                    impacts=round(count) if math.isfinite(count) else None)
 
     def resection(self, point):
         """Move the branch's Poincaré section to where the orbit at ``point`` flies farthest
@@ -382,7 +385,8 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             break
         s_now = np.asarray(drv.prob.s0)
         back = np.append((b["x0"] - points[0]["x0"]) / s_now, b["z"][-1] - points[0]["z"][-1])
-        if len(points) > 10 and np.linalg.norm(back) < 0.5 * h:
+        if len(points) > 10 and np.linalg.norm(back) < 0.5 * h or _retraced(
+                points, s_now, method.max_angle):
             termination = "closed"
             break
         points[-1] = drv.rescale(b)
@@ -467,6 +471,42 @@ def _in_scale(point, s_old, s_new):
     ``s_old``, in the state scale ``s_new``."""
     t = np.append(point["t"][:-1] * s_old / s_new, point["t"][-1])
     return np.append(point["xi"] / s_new, point["z"][-1]), t / np.linalg.norm(t)
+
+
+def _retraced(points, s_now, max_angle):
+    """Whether the branch's last point lies on a part of the branch followed already,
+    going the same way (round a loop whose start is not the branch's first point: the
+    snaking branches of impacting orbits pass a grazing again and go round once more).
+    In the unknowns ``(x0 / s_now, p)`` (``x0`` the orbit's state at ``t = 0``, whatever
+    the section), the last point projects inside an earlier chord (not one of the last
+    two) whose ends have as many impacts a period as it, lies off it by no more than
+    ``RETRACE`` of its length, and the last chord turns from it by less than
+    ``max_angle``: a smooth branch passes near itself only where it retraces itself (points
+    of one orbit), and its own curve sags from a chord turned by ``θ`` by about ``θ/8`` of
+    it (a chord across a grazing corner joins two sheets, whose impacts differ)."""
+    if len(points) < 5:
+        return False
+    X = np.column_stack([np.array([q["x0"] for q in points]) / s_now,
+                         np.array([q["z"][-1] for q in points])])
+    P, d = X[:-3], X[1:-2] - X[:-3]
+    length2 = np.einsum("ij,ij->i", d, d)
+    last = X[-1] - X[-2]
+    u = np.einsum("ij,ij->i", X[-1] - P, d) / np.where(length2 > 0, length2, np.inf)
+    off = np.linalg.norm(X[-1] - P - u[:, None] * d, axis=1)
+    along = d @ last / np.maximum(np.sqrt(length2) * np.linalg.norm(last), 1e-300)
+    # the same orbits: as many impacts as both ends of the chord (NaN where the orbits
+    # count none: balanced ones)
+    count = np.array([q["impacts"] if q.get("impacts") is not None else
+                      float(q["ss"].impacts) * int(q["ss"].period_multiple) for q in points],
+                     dtype=float)
+
+    def same_as_last(c):
+        return (c == count[-1]) | (np.isnan(c) & np.isnan(count[-1]))
+
+    same = same_as_last(count[:-3]) & same_as_last(count[1:-2])
+    near = ((u >= 0) & (u <= 1) & (length2 > 0) & (off <= RETRACE * np.sqrt(length2))
+            & (along >= math.cos(max_angle)) & same)
+    return bool(np.any(near))
 
 
 def _past_grazing(bifs, bif, beyond):
@@ -825,8 +865,12 @@ def _sampled(drv, system, forcing, x0):
 
 
 def _impacts(point):
-    """Impacts over the response period of branch point ``point``."""
-    return round(float(point["ss"].impacts) * int(point["ss"].period_multiple))
+    """Impacts over the response period of branch point ``point`` (kept in it by
+    ``_Driver.point``)."""
+    count = point.get("impacts")
+    if count is None:
+        count = round(float(point["ss"].impacts) * int(point["ss"].period_multiple))
+    return count
 
 
 def _born(a, b):

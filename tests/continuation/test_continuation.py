@@ -687,3 +687,34 @@ def test_a_branch_retracing_two_grazings_in_a_row_is_closed():
     # folds between the grazings do not matter; unlocated grazings are not compared
     assert _passed_before([A, B, g(26.0, s, kind="fold"), C, D, Bp, Cp])
     assert not _passed_before([A, B, C, D, Bp, g(27.78, C.state, located=False)])
+
+
+def test_a_branch_back_on_a_part_it_followed_is_retraced():
+    # points round a circle in (state, parameter), then on round it again: the first point
+    # of the second lap lies on a chord of the first (off it by the circle's sag, 1.7e-2 of
+    # its length), going the same way; a point as near going the other way, or off the
+    # chord by a tenth of its length, or with another count of impacts than the chord's
+    # ends (a chord across a grazing corner joins two sheets), does not retrace it
+    from types import SimpleNamespace
+
+    from absorber_jax._continuation.driver import _retraced
+
+    def point(theta, impacts=3, off=0.0):
+        r = 1.0 + off
+        ss = SimpleNamespace(impacts=float(impacts), period_multiple=1)
+        return dict(x0=np.array([r * np.cos(theta), 0.5]), z=np.array([0.0, r * np.sin(theta)]),
+                    ss=ss)
+
+    s = np.ones(2)
+    lap = [point(th) for th in np.linspace(0.0, 2 * np.pi, 40, endpoint=False)]
+    d = 2 * np.pi / 40
+    again = [point(2 * np.pi + 0.3 * d), point(2 * np.pi + 1.3 * d)]
+    assert _retraced(lap + again, s, 0.35)
+    assert not _retraced(lap, s, 0.35)                       # a smooth curve: never
+    assert not _retraced(lap[:4], s, 0.35)
+    back = [point(1.7 * d), point(1.3 * d)]                  # the same place, the other way
+    assert not _retraced(lap + back, s, 0.35)
+    aside = [point(2 * np.pi + 0.3 * d), point(2 * np.pi + 1.3 * d, off=0.1 * d)]
+    assert not _retraced(lap + aside, s, 0.35)
+    other = [point(2 * np.pi + 0.3 * d, 4), point(2 * np.pi + 1.3 * d, 4)]
+    assert not _retraced(lap + other, s, 0.35)

@@ -28,6 +28,10 @@ LOOP_TOL = 1e-6
 # a branch point within this fraction of an earlier chord's length off it (projecting
 # inside it, going the same way) retraces the branch: it ends "closed" (driver._retraced)
 RETRACE = 0.05
+# ... on an earlier chord no more than this many times as long as the longer of its
+# neighbours (steps grow by at most 1.5 from one point to the next: a longer chord spans a
+# jump of the state at t = 0, an impact crossing t = 0)
+RETRACE_SPIKE = 4.0
 # branch points looked back over for the last one clear of the walls
 GRAZING_LOOKBACK = 12
 # samples per period of the orbit whose closest approach to the walls is measured (each

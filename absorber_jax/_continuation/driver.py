@@ -46,6 +46,7 @@ from .constants import (
     RESECTION_SAME,
     RESECTION_TANGENT,
     RETRACE,
+    RETRACE_SPIKE,
 )
 from .events import _events, _g
 from .problem import (
@@ -366,6 +367,13 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                 c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
                 b = c
             termination = "bounds"
+        if termination is None and _retraced(points + [b], np.asarray(drv.prob.s0),
+                                             method.max_angle):
+            # back on a part of the branch followed already: its events were met there
+            points.append(b)
+            bar.update(1)
+            termination = "closed"
+            break
         for kind in _events(a, b):
             args = (copy.copy(drv), kind, a, b, len(points) - 1, locate,
                     float(np.linalg.norm(b["z"] - a["z"])))
@@ -385,8 +393,7 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
             break
         s_now = np.asarray(drv.prob.s0)
         back = np.append((b["x0"] - points[0]["x0"]) / s_now, b["z"][-1] - points[0]["z"][-1])
-        if len(points) > 10 and np.linalg.norm(back) < 0.5 * h or _retraced(
-                points, s_now, method.max_angle):
+        if len(points) > 10 and np.linalg.norm(back) < 0.5 * h:
             termination = "closed"
             break
         points[-1] = drv.rescale(b)
@@ -483,11 +490,17 @@ def _retraced(points, s_now, max_angle):
     ``RETRACE`` of its length, and the last chord turns from it by less than
     ``max_angle``: a smooth branch passes near itself only where it retraces itself (points
     of one orbit), and its own curve sags from a chord turned by ``θ`` by about ``θ/8`` of
-    it (a chord across a grazing corner joins two sheets, whose impacts differ)."""
+    it (a chord across a grazing corner joins two sheets, whose impacts differ).  A chord
+    more than ``RETRACE_SPIKE`` times as long as both its neighbours is not one: the
+    state at ``t = 0`` jumps where an impact crosses ``t = 0``, and such a chord is no
+    piece of the branch's curve."""
     if len(points) < 5:
         return False
     X = np.column_stack([np.array([q["x0"] for q in points]) / s_now,
                          np.array([q["z"][-1] for q in points])])
+    chords = np.linalg.norm(np.diff(X, axis=0), axis=1)
+    side = np.maximum(np.append(0.0, chords[:-1]), np.append(chords[1:], 0.0))
+    smooth = chords <= RETRACE_SPIKE * side
     P, d = X[:-3], X[1:-2] - X[:-3]
     length2 = np.einsum("ij,ij->i", d, d)
     last = X[-1] - X[-2]
@@ -505,7 +518,7 @@ def _retraced(points, s_now, max_angle):
 
     same = same_as_last(count[:-3]) & same_as_last(count[1:-2])
     near = ((u >= 0) & (u <= 1) & (length2 > 0) & (off <= RETRACE * np.sqrt(length2))
-            & (along >= math.cos(max_angle)) & same)
+            & (along >= math.cos(max_angle)) & same & smooth[:-2])
     return bool(np.any(near))
 
 

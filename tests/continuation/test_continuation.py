@@ -718,3 +718,26 @@ def test_a_branch_back_on_a_part_it_followed_is_retraced():
     assert not _retraced(lap + aside, s, 0.35)
     other = [point(2 * np.pi + 0.3 * d, 4), point(2 * np.pi + 1.3 * d, 4)]
     assert not _retraced(lap + other, s, 0.35)
+    # ... nor does it where one end of the chord has another count (a grazing corner)
+    for k in (1, 2):                                    # either end of the chord
+        corner = lap[:k] + [point(k * d, 4)] + lap[k + 1:]
+        assert not _retraced(corner + again, s, 0.35)
+    # the count kept in a point (``_Driver.point``) is the one compared
+    kept = [dict(q, impacts=3, ss=SimpleNamespace(impacts=4.0, period_multiple=1))
+            for q in lap + again]
+    assert _retraced(kept, s, 0.35)
+    kept[-1]["impacts"] = 4
+    assert not _retraced(kept, s, 0.35)
+    # a branch going on straight ahead never lies inside one of its earlier chords
+    line = [dict(point(0.0), x0=np.array([0.1 * k, 0.5]), z=np.array([0.0, 0.02 * k]))
+            for k in range(30)]
+    assert not _retraced(line, s, 0.35)
+    # a chord across a jump of the state at t = 0 (an impact crossing t = 0: 13 times as
+    # long as its neighbours) is no piece of the branch: a point near it, going its way,
+    # does not retrace the branch
+    jump = [dict(q, x0=q["x0"] + np.array([0.0, 2.0 * (k >= 10)])) for k, q in enumerate(lap)]
+    assert not _retraced(jump, s, 0.35)
+    p9, p10 = (np.append(jump[k]["x0"], jump[k]["z"][-1]) for k in (9, 10))
+    near = [dict(point(0.0), x0=(p9 + f * (p10 - p9))[:2] + [0.0, 0.01],
+                 z=np.array([0.0, (p9 + f * (p10 - p9))[2]])) for f in (0.3, 0.5)]
+    assert not _retraced(jump + near, s, 0.35)

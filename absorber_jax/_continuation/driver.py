@@ -85,11 +85,10 @@ class _Driver:
         scale at its parameter value."""
         ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
         z = np.asarray(z)
-        count = float(ss.impacts) * int(ss.period_multiple)
         return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, xi=z[:-1] * np.asarray(self.prob.s0),
                     x0=sec.at_zero, mult=np.asarray(ss.multipliers),
                     ok=int(ss.status) == Status.SUCCESS, sc=np.asarray(sc),
-                    impacts=round(count) if math.isfinite(count) else None)
+                    impacts=_counted(ss))
 
     def resection(self, point):
         """Move the branch's Poincaré section to where the orbit at ``point`` flies farthest
@@ -498,26 +497,24 @@ def _retraced(points, s_now, max_angle):
         return False
     X = np.column_stack([np.array([q["x0"] for q in points]) / s_now,
                          np.array([q["z"][-1] for q in points])])
-    chords = np.linalg.norm(np.diff(X, axis=0), axis=1)
+    D = np.diff(X, axis=0)                                   # the chords
+    chords = np.linalg.norm(D, axis=1)
     side = np.maximum(np.append(0.0, chords[:-1]), np.append(chords[1:], 0.0))
     smooth = chords <= RETRACE_SPIKE * side
-    P, d = X[:-3], X[1:-2] - X[:-3]
-    length2 = np.einsum("ij,ij->i", d, d)
-    last = X[-1] - X[-2]
-    u = np.einsum("ij,ij->i", X[-1] - P, d) / np.where(length2 > 0, length2, np.inf)
+    # the earlier chords (all but the last two) from their first points P
+    P, d, length = X[:-3], D[:-2], chords[:-2]
+    u = np.einsum("ij,ij->i", X[-1] - P, d) / np.where(length > 0, length**2, np.inf)
     off = np.linalg.norm(X[-1] - P - u[:, None] * d, axis=1)
-    along = d @ last / np.maximum(np.sqrt(length2) * np.linalg.norm(last), 1e-300)
+    along = d @ D[-1] / np.maximum(length * chords[-1], 1e-300)
     # the same orbits: as many impacts as both ends of the chord (NaN where the orbits
     # count none: balanced ones)
-    count = np.array([q["impacts"] if q.get("impacts") is not None else
-                      float(q["ss"].impacts) * int(q["ss"].period_multiple) for q in points],
-                     dtype=float)
+    count = np.array([_impact_count(q) for q in points])
 
     def same_as_last(c):
         return (c == count[-1]) | (np.isnan(c) & np.isnan(count[-1]))
 
     same = same_as_last(count[:-3]) & same_as_last(count[1:-2])
-    near = ((u >= 0) & (u <= 1) & (length2 > 0) & (off <= RETRACE * np.sqrt(length2))
+    near = ((u >= 0) & (u <= 1) & (length > 0) & (off <= RETRACE * length)
             & (along >= math.cos(max_angle)) & same & smooth[:-2])
     return bool(np.any(near))
 
@@ -877,13 +874,22 @@ def _sampled(drv, system, forcing, x0):
             float(np.max(np.abs(np.asarray(drv.prob.s0)))), int(impacts))
 
 
-def _impacts(point):
-    """Impacts over the response period of branch point ``point`` (kept in it by
-    ``_Driver.point``)."""
+def _counted(ss):
+    """Impacts over the response period of the orbit whose ``SteadyState`` is ``ss``, as a
+    whole number (a float), NaN where it counts none (a failed point, a balanced orbit)."""
+    count = float(ss.impacts) * int(ss.period_multiple)
+    return float(round(count)) if math.isfinite(count) else math.nan
+
+
+def _impact_count(point):
+    """``_counted`` of branch point ``point``'s orbit (kept in it by ``_Driver.point``)."""
     count = point.get("impacts")
-    if count is None:
-        count = round(float(point["ss"].impacts) * int(point["ss"].period_multiple))
-    return count
+    return _counted(point["ss"]) if count is None else count
+
+
+def _impacts(point):
+    """Impacts over the response period of branch point ``point`` (a solved one)."""
+    return int(_impact_count(point))
 
 
 def _born(a, b):

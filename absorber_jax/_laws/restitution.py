@@ -19,9 +19,11 @@ Vib. 99 (1985) 85).
 into the wall) and bouncing with ``e < 1`` makes an infinite sequence of ever shorter
 flights that ends at a finite time (a Zeno sequence: after an impact at speed ``w⁺`` the
 remaining flights last ``2|w⁺| / (|ü|(1-e))`` in all).  The systems end it when that time
-falls below ``ZENO_FRACTION`` of the forcing period: the body then sticks to the wall (a
-plastic end of the sequence, momentum conserved) and moves with it until the force that
-holds it there would turn tensile.
+falls below ``ZENO_FRACTION`` of the forcing period, or where the next bounce would rise
+less than ``ZENO_HEIGHT`` of the motion's length scale, at least the gap (below what the
+flights' rounding resolves): the body then sticks to the wall (a plastic end of the
+sequence, momentum conserved) and moves with it until the force that holds it there would
+turn tensile.
 """
 
 import math
@@ -38,6 +40,13 @@ from .contact import AbstractCompliantLaw, AbstractContactLaw
 # a Zeno sequence of impacts shorter than this fraction of the forcing period ends in
 # sticking at once (see the module docstring)
 ZENO_FRACTION = 1e-7
+# ... as does one whose next bounce would rise less than this fraction of the motion's
+# length scale (at least the gap) off the wall (``w⁺²/(2|ü|)``): the flights' rounding of
+# the relative position (~1e-14 of the motion's size) gives the bounces back about as much
+# energy as the impacts take once they are that low (e = 0.947 under 0.8 m/s²: bounces
+# stalled at 4e-9 m/s, 3125 impacts in one period, where the rest of the sequence would
+# last 60 times ZENO_FRACTION of it)
+ZENO_HEIGHT = 1e-12
 # the integrator takes at least this many steps per forcing period with rigid walls (an
 # impact is located from a sign change at the ends of a step: a graze shorter than a step
 # is missed, so the steps bound how deep a missed excursion can be)
@@ -90,6 +99,16 @@ class Restitution(AbstractContactLaw):
         return jnp.where(self.e < 1.0, 2.0 * jnp.abs(w_after) / (a * jnp.maximum(1.0 - self.e,
                                                                                   1e-300)),
                          jnp.inf)
+
+    def settles(self, w_after, accel, period, length):
+        """Whether a Zeno sequence ends in sticking after an impact leaving the wall at
+        speed ``|w_after|`` [m/s] under a relative acceleration ``|accel|`` [m/s²] into it:
+        the rest of the sequence (``zeno_time``) lasts no more than ``ZENO_FRACTION`` of
+        the forcing ``period`` [s], or the next bounce rises no more than ``ZENO_HEIGHT``
+        times ``length`` [m] (the motion's length scale, at least the gap) off the wall."""
+        a = jnp.maximum(jnp.abs(accel), 1e-300)
+        low = w_after * w_after / (2.0 * a) <= ZENO_HEIGHT * length
+        return (self.zeno_time(w_after, accel) <= ZENO_FRACTION * period) | low
 
     def wall_force(self, x, rate):
         zero = jnp.zeros_like(jnp.asarray(x, dtype=float))

@@ -24,7 +24,7 @@ from .._core import units
 from .._core.checks import as_float, nonnegative, positive
 from .._laws.contact import AbstractContactLaw
 from .._laws.friction import AbstractFrictionLaw
-from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
+from .._laws.restitution import RIGID_STEPS_PER_PERIOD
 from .base import AbstractHybridSystem, not_linear
 from .linear import _internal, finite_or_zero, harmonic_response, state_at_zero, two_mass_matrices
 
@@ -402,8 +402,8 @@ class ImpactAbsorber(AbstractAbsorberSystem):
 
     def next_mode(self, t, s, forcing, mode):
         # free -> an impact at the wall on the side of u: Newton's law with momentum
-        # conserved, then sticking if what remains of a Zeno sequence is shorter than
-        # ZENO_FRACTION of the period; stuck -> free flight from rest against the wall
+        # conserved, then sticking where the Zeno sequence settles (Restitution.settles);
+        # stuck -> free flight from rest against the wall
         side = jnp.where(s[2] >= 0, 1.0, -1.0)
         w = s[3]
         meff = self.M * self.m / (self.M + self.m)
@@ -413,8 +413,8 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         hit = jnp.stack([s[0], v1, side * self.gap, w_after])
         a_rel = -self._free_acceleration(t, hit, forcing)
         pressed = side * a_rel > 0
-        zeno = self.contact.zeno_time(w_after, a_rel) <= ZENO_FRACTION * forcing.period
-        stick = pressed & zeno
+        length = jnp.maximum(self.gap, self.state_scale(forcing)[0])
+        stick = pressed & self.contact.settles(w_after, a_rel, forcing.period, length)
         # a plastic end of the sequence: both share the momentum's velocity
         v_common = s[1] + self.m * w / (self.M + self.m)
         stuck = jnp.stack([s[0], v_common, side * self.gap, jnp.zeros_like(w)])

@@ -29,7 +29,7 @@ import numpy as np
 
 from .._core import units
 from .._core.checks import is_traced
-from .._laws.restitution import RIGID_STEPS_PER_PERIOD, ZENO_FRACTION
+from .._laws.restitution import RIGID_STEPS_PER_PERIOD
 from .base import AbstractHybridSystem, not_linear
 from .elements import AbstractElement, is_exact, is_linear, is_rigid
 from .linear import finite_or_zero
@@ -604,8 +604,10 @@ class StructuralSystem(AbstractHybridSystem):
         r_free, _ = self._rigid_rate(t, bounced, forcing, jnp.where(hit, 0, mode))
         a_rel = self._normal_rates(bounced, r_free)[k]
         w_after = self._normals(bounced)[1][k]
-        zeno = jnp.stack([law.zeno_time(w_after, a_rel) for law in laws])[k]
-        stick = (side * a_rel > 0) & (zeno <= ZENO_FRACTION * forcing.period)
+        length = self._rigid_scales(forcing)[0][k]
+        settles = jnp.stack([law.settles(w_after, a_rel, forcing.period, length)
+                             for law in laws])[k]
+        stick = (side * a_rel > 0) & settles
         impact = mode[k] == 0
         new_mode = jnp.where(hit, jnp.where(impact & stick, side, 0), mode)
         return new_mode, jnp.where(impact, jnp.where(stick, plastic, bounced), s)

@@ -690,6 +690,45 @@ def test_energy_lost_in_sticking_and_chatter_is_newtons_loss_per_impact():
     assert np.mean(np.abs(np.abs(u) - p["gap"]) < 1e-12) > 0.05
 
 
+def test_a_zeno_sequence_below_the_rounding_floor_ends_in_sticking():
+    # the hard scene's ball (e = 0.947) released 1 nm off the wall it is pressed against
+    # (~0.3 m/s², the primary moving at 0.12 m/s): its bounces decay until the flights'
+    # rounding of the relative position gives them back as much energy as the impacts take
+    # (~4e-9 m/s), long before what remains of the sequence is ZENO_FRACTION of the period.
+    # The event-exact reference at that fraction chatters on without sticking; ended where
+    # a bounce no longer rises above the rounding, the sequence sticks where the reference
+    # with a looser fraction (1e-5 of the period) does, and the ball rides the wall until
+    # it is released
+    e, gap, omega = 0.947, 2e-3, 20.05
+    system = aj.ImpactAbsorber(M=1.0, k=1e3, c=0.5, m=0.2, gap=gap, contact=aj.Restitution(e))
+    forcing = aj.Harmonic(amplitude=3.0, omega=omega)
+    t0, x1, v1 = 42.934, -2.937e-4, 0.1220
+    a_rel = -(float(forcing(t0)) - 0.5 * v1 - 1e3 * x1)
+    side = np.sign(a_rel)
+    y0 = np.array([x1, v1, x1 + side * (gap - 1e-9), v1])
+    ts = t0 + np.linspace(0.0, 0.01, 2001)
+    tr = aj.simulate(system, forcing, ts[-1], t0=t0, ts=ts, y0=y0)
+    assert int(tr.status) == 0
+    stalled = RigidImpactAbsorber(1.0, 1e3, 0.5, 0.2, gap, e, 3.0, omega, zeno=1e-7)
+    _, events = stalled.run(y0, t0, ts[-1], ts)
+    assert not any(k == "stick" for _, k in events)
+    assert sum(k == "impact" for _, k in events) > 100
+    ref, events = RigidImpactAbsorber(1.0, 1e3, 0.5, 0.2, gap, e, 3.0, omega,
+                                      zeno=1e-5).run(y0, t0, ts[-1], ts)
+    t_stick = [t for t, k in events if k == "stick"]
+    assert len(t_stick) == 1
+    np.testing.assert_allclose(np.asarray(tr.x1), ref[:, 0], rtol=0, atol=1e-10 * gap)
+    np.testing.assert_allclose(np.asarray(tr.x2), ref[:, 2], rtol=0, atol=1e-10 * gap)
+    u = np.asarray(tr.x2) - np.asarray(tr.x1)
+    w = np.asarray(tr.v2) - np.asarray(tr.v1)
+    t_free = min([t for t, k in events if k == "release"] + [ts[-1]])
+    held = (ts > t_stick[0] + 1e-5) & (ts < t_free - 1e-5)
+    assert np.sum(held) > 100
+    assert np.all(np.abs(u[held] - side * gap) < 1e-15) and np.all(w[held] == 0.0)
+    assert not np.any((np.abs(u - side * gap) < 1e-15)[ts < t_stick[0] - 1e-5] & (
+        w[ts < t_stick[0] - 1e-5] == 0.0))
+
+
 def test_a_rigid_band_runs_on_two_cpu_devices():
     # band_continuation of an event-driven system in a process with two CPU devices (its
     # batched correctors' lanes split over both, each device running its lanes one after

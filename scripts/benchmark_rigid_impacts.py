@@ -20,7 +20,10 @@ Scenes:
   (8 starts, at most 60 points a half-branch, rtol = atol = 1e-7, 2 fill passes).
 
     python scripts/benchmark_rigid_impacts.py [--parts building,hard,band,band60] [--devices N]
-                                              [--out FILE]
+                                              [--draws N] [--out FILE]
+
+``--draws N``: the band parts also run N more times compiled, their lower bound moved by
+up to 0.03 rad/s (``DRAWS``): the spread of their time and coverage.
 
 ``--devices N``: both routes on N CPU devices (``aj.use_cpu_cores(N)``; default one): the
 batched correctors of ``band_continuation`` split their lanes over them.
@@ -32,6 +35,7 @@ Prints each result as it comes; ``--out`` appends them to FILE
 from __future__ import annotations
 
 import argparse
+import re
 import time
 import warnings
 
@@ -113,10 +117,20 @@ def continue_hard():
                + "".join(f"; grazing at {b.value:.7g} rad/s" for b in br.of_kind("grazing")))
 
 
-def band_hard(label="band", **options):
+# lower bounds of the band's draws (``--draws``): the same band, its start values moved
+DRAWS = (19.99, 20.01, 19.98, 20.02, 19.97, 20.03)
+
+
+def band_hard(label="band", draws=0, **options):
     """``band_continuation`` over 20-45 rad/s on the hard scene, both routes, each timed twice
     (the second run compiled): points, grazings located, and the parts no branch reached.
-    ``options`` go to ``band_continuation`` (both routes)."""
+    ``options`` go to ``band_continuation`` (both routes).
+
+    ``draws``: also that many compiled runs with the lower bound moved to ``DRAWS`` (the
+    starts move with it).  In the band's chaotic window (28.4-29.8 rad/s) which orbits the
+    starts' Newton solves and marches land on depends on the rounding of every earlier
+    step, so the branches found there, and their cost, differ from one draw to the next:
+    one run is one sample of that spread."""
     kv = aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True)
     e = aj.restitution_of(kv, 0.2, 1.0)
     for name, contact in ((f"rigid e={e:.4f}", aj.Restitution(e)), ("penalty KV 2e4", kv)):
@@ -124,11 +138,7 @@ def band_hard(label="band", **options):
         forcing = aj.Harmonic(amplitude=3.0, omega=20.0)
 
         def run(system=system, forcing=forcing):
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                brs = aj.band_continuation(system, forcing, "omega", bounds=(20.0, 45.0),
-                                           **options)
-            return brs, [str(w.message) for w in caught if "no branch reached" in str(w.message)]
+            return band_run(system, forcing, 20.0, options)
 
         (brs, gaps), t_first = timed(run)
         (brs, gaps), t_again = timed(run)
@@ -141,6 +151,33 @@ def band_hard(label="band", **options):
                f"compilation, {t_again:.1f} s compiled; {len(brs)} half-branches, {points} "
                f"points, {grazings} grazings; ended {ends}"
                + (f"; {gaps[0]}" if gaps else "; the whole band reached"))
+        times = [t_again]
+        for lo in DRAWS[:draws]:
+            (brs, gaps), t = timed(lambda lo=lo, s=system, f=forcing: band_run(s, f, lo, options))
+            times.append(t)
+            report(f"[{label}] {name}: draw from {lo} rad/s: {t:.1f} s compiled, "
+                   f"{sum(len(b.values) for b in brs)} points, unreached "
+                   f"{unreached(gaps):.3f} rad/s")
+        if draws:
+            report(f"[{label}] {name}: compiled over {len(times)} draws: median "
+                   f"{np.median(times):.1f} s, range {min(times):.1f}-{max(times):.1f} s")
+
+
+def band_run(system, forcing, lo, options):
+    """The hard band from ``lo`` to 45 rad/s: the branches and the warning about the parts
+    none reached (if any)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        brs = aj.band_continuation(system, forcing, "omega", bounds=(lo, 45.0), **options)
+    return brs, [str(w.message) for w in caught if "no branch reached" in str(w.message)]
+
+
+def unreached(gaps):
+    """The total width [rad/s] of the parts a band warning names."""
+    if not gaps:
+        return 0.0
+    parts = gaps[0].split(" in ", 1)[1].split(";", 1)[0]
+    return sum(float(b) - float(a) for a, b in re.findall(r"([0-9.]+)-([0-9.]+)", parts))
 
 
 def main():
@@ -148,6 +185,7 @@ def main():
     ap.add_argument("--parts", default="building,hard,band")
     ap.add_argument("--out", default=None)
     ap.add_argument("--devices", type=int, default=1)
+    ap.add_argument("--draws", type=int, default=0)
     a = ap.parse_args()
     if a.devices > 1:
         aj.use_cpu_cores(a.devices)
@@ -157,11 +195,11 @@ def main():
     if "hard" in a.parts:
         continue_hard()
     if "band" in a.parts.split(","):
-        band_hard()
+        band_hard(draws=a.draws)
     if "band60" in a.parts.split(","):
         # the settings of scripts/benchmark_hard_contacts.py's band (8 starts, 60 points a
         # half-branch, rtol = atol = 1e-7, 2 fill passes)
-        band_hard("band60", starts=8, method=aj.PseudoArclength(max_points=60),
+        band_hard("band60", draws=a.draws, starts=8, method=aj.PseudoArclength(max_points=60),
                   integrator=aj.Integrator(rtol=1e-7, atol=1e-7))
     if a.out:
         with open(a.out, "a") as fh:

@@ -413,7 +413,8 @@ class ImpactAbsorber(AbstractAbsorberSystem):
         hit = jnp.stack([s[0], v1, side * self.gap, w_after])
         a_rel = -self._free_acceleration(t, hit, forcing)
         pressed = side * a_rel > 0
-        length = jnp.maximum(self.gap, self.state_scale(forcing)[0])
+        # the motion's length scale (at least the gap: length_floor)
+        length = self.state_scale(forcing)[0]
         stick = pressed & self.contact.settles(w_after, a_rel, forcing.period, length)
         # a plastic end of the sequence: both share the momentum's velocity
         v_common = s[1] + self.m * w / (self.M + self.m)

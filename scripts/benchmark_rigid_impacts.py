@@ -128,9 +128,10 @@ def band_hard(label="band", draws=0, **options):
     ``options`` go to ``band_continuation`` (both routes).
 
     ``draws``: also that many compiled runs with the lower bound moved to ``DRAWS`` (the
-    starts move with it; each run once untimed first).  In the band's chaotic window (28.4-29.8 rad/s) which orbits the
-    starts' Newton solves and marches land on depends on the rounding of every earlier
-    step, so the branches found there, and their cost, differ from one draw to the next:
+    starts move with it; each run once untimed first).  In the band's chaotic window
+    (28.4-29.8 rad/s) which orbits the starts' Newton solves and marches land on depends
+    on the rounding of every earlier step, so the branches found there, and their cost,
+    differ from one draw to the next:
     one run is one sample of that spread."""
     kv = aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True)
     e = aj.restitution_of(kv, 0.2, 1.0)

@@ -284,7 +284,8 @@ def test_design_gradient_through_the_impacts_matches_central_differences():
         h = 1e-5 * p
         fd = (amp2(name, p + h) - amp2(name, p - h)) / (2 * h)
         assert abs(fd) > 1e-3 * val / p          # each parameter matters here
-        np.testing.assert_allclose(grads[name], fd, rtol=2e-4, err_msg=name)
+        # (measured: within 2e-9 of the central differences for all four)
+        np.testing.assert_allclose(grads[name], fd, rtol=1e-6, err_msg=name)
 
 
 @pytest.mark.slow

@@ -42,7 +42,7 @@ from .._periodic.harmonic import HarmonicBalance
 from .._periodic.marching import Marching
 from .._periodic.shooting import Shooting
 from .._periodic.steady import make_config, steady_state
-from .._periodic.sweep import RETRY_BATCH, frequency_response, retry_chunk
+from .._periodic.sweep import RETRY_BATCH, frequency_response, march_chunk
 from .._systems.forcing import Harmonic
 from .._systems.params import get_param, replace_params
 from .base import (
@@ -156,28 +156,24 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
     return float(val), grads, np.asarray(status)
 
 
-def _reseed(system, names, reparam, u, omegas, amplitude, status, states, tol, newton_steps,
-            cfg):
+def _reseed(system, names, reparam, u, omegas, amplitude, status, states, cfg):
     """Internal-state guesses for a band: the converged states where ``status`` is 0, and
-    for the others the orbit found by marching then shooting (the sweep's retry, in
-    fixed-size batches: one compilation)."""
+    for the others the state marched from rest (``march_from_rest``, in fixed-size
+    batches: one compilation).  The design's own shooting then starts from them, so the
+    marches need no shooting of their own (no march-then-shoot program)."""
 
     p = np.asarray(reparam.forward(u))
-    sysp = replace_params(system, dict(zip(names, p)), check=False)
     bad = np.flatnonzero(status != Status.SUCCESS)
     seeds = np.where((status == Status.SUCCESS)[:, None], states, np.nan)
-    method = Shooting(tol=float(tol), newton_steps=int(newton_steps))
     for start in range(0, bad.size, RETRY_BATCH):
         idx = bad[start:start + RETRY_BATCH]
         pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
-        out = retry_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
-                           jnp.asarray(amplitude, dtype=float),
-                           jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, method, names, False,
-                           jnp.asarray(np.arange(RETRY_BATCH) < idx.size))
-        st, pub = np.asarray(out.status)[:idx.size], np.asarray(out.state)[:idx.size]
-        for j, i in enumerate(idx):
-            if st[j] == Status.SUCCESS:
-                seeds[i] = np.asarray(sysp.to_internal(jnp.asarray(pub[j])))
+        _, marched = march_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
+                                 jnp.asarray(amplitude, dtype=float),
+                                 jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, names, False,
+                                 jnp.asarray(np.arange(RETRY_BATCH) < idx.size))
+        marched = np.asarray(marched)[:idx.size]
+        seeds[idx] = marched
     return seeds
 
 
@@ -563,10 +559,10 @@ class _Evaluator:
             res, amps, states, status = self._run(u, self.guesses)
             if not np.all(status == Status.SUCCESS):
                 # Newton from the warm start (or the linear guess) failed somewhere: seed
-                # those frequencies from marching (march_then_shoot) and evaluate again
+                # those frequencies from marching and evaluate again
                 system, names, reparam = self.args
                 seeds = _reseed(system, names, reparam, u, self.omegas, self.amplitude,
-                                status, states, self.tol, self.newton_steps, self.cfg)
+                                status, states, self.cfg)
                 res, amps, states, status = self._run(u, jnp.asarray(seeds))
             self.guesses = jnp.where(jnp.asarray(status == Status.SUCCESS)[:, None], states,
                                      jnp.nan)

@@ -137,7 +137,7 @@ def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floqu
 
 
 @eqx.filter_jit
-def _march_chunk(system, omegas, amplitude, pvals, cfg, names, with_floquet, live):
+def march_chunk(system, omegas, amplitude, pvals, cfg, names, with_floquet, live):
     """``march_from_rest`` at each lane's frequency and parameter values: the marches of
     ``march_then_shoot``, whose polishing shots run in programs the sweep already has
     (``_finish_stragglers``); their results and the marched internal states."""
@@ -218,7 +218,7 @@ def _finish_stragglers(system, res, W, PV, amp, cfg, method, rest, names, with_f
         return _in_batches(res, bad, lambda p, live: retry_chunk(
             system, jnp.asarray(W[p]), amp, jnp.asarray(PV[p]), cfg, method, names,
             with_floquet, live), "retry", progress, _retry_batch(system))
-    ma, xm = by_parts(bad, size, lambda p, live, d: _march_chunk(
+    ma, xm = by_parts(bad, size, lambda p, live, d: march_chunk(
         system, put(W[p], d), amp, put(PV[p], d), cfg, names, with_floquet, put(live, d)),
                       ndev, progress)
     # the whole Newton budget, as the sweep's own points had it: the first pass's, then

@@ -266,3 +266,23 @@ def test_tune_by_harmonic_balance_follows_the_shooting_descent():
     with pytest.raises(ValueError, match="follows its peaks by shooting"):
         aj.tune(tmd, ["tmd1.k"], (25.0, 38.0), amplitude=1.0,
                 method=aj.HarmonicBalance(harmonics=1))
+
+
+def test_failed_design_frequencies_are_seeded_by_marching(monkeypatch):
+    """Frequencies where two Newton steps from the linear guess do not converge are seeded
+    by a march from rest (no shooting of its own) and solved again by the design's own
+    shooting: the first objective of ``tune`` is the one of the orbits converged at the
+    full Newton budget (measured: equal to 1e-10)."""
+    system, _ = aj.presets.impact("kelvin_voigt")
+    objective = aj.objectives.MeanSquare(n_freq=6)
+    marches = []
+    march = _design.march_chunk
+    monkeypatch.setattr(_design, "march_chunk", lambda *a: marches.append(a) or march(*a))
+    _, hist = aj.tune(system, ["k1", "c1"], (35.0, 45.0), amplitude=2.0, steps=1,
+                      objective=objective, method=aj.Shooting(newton_steps=2), confirm=False)
+    # the linear guess failed somewhere (reseeding ran), and every frequency converged
+    assert marches and hist["failed"][0] == 0
+    ref, _, status = aj.value_and_grad(system, ["k1", "c1"], np.linspace(35.0, 45.0, 6),
+                                       amplitude=2.0, objective=objective)
+    assert np.all(status == 0)
+    np.testing.assert_allclose(hist["objective"][0], ref, rtol=1e-8)

@@ -139,8 +139,9 @@ def retry_chunk(system, omegas, amplitude, pvals, cfg, method, names, with_floqu
 @eqx.filter_jit
 def march_chunk(system, omegas, amplitude, pvals, cfg, names, with_floquet, live):
     """``march_from_rest`` at each lane's frequency and parameter values: the marches of
-    ``march_then_shoot``, whose polishing shots run in programs the sweep already has
-    (``_finish_stragglers``); their results and the marched internal states."""
+    ``march_then_shoot``, whose polishing shots run in programs the caller already has
+    (the sweep's, ``_finish_stragglers``; a design's, ``tune``'s reseeding); their
+    results and the marched internal states."""
     def point(w, pv):
         sysp, forcp = _with(system, names, pv), _forcing(amplitude, w)
         ma, xm = march_from_rest(sysp, forcp, cfg, with_floquet=with_floquet)

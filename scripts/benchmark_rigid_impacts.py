@@ -131,8 +131,7 @@ def band_hard(label="band", draws=0, **options):
     starts move with it; each run once untimed first).  In the band's chaotic window
     (28.4-29.8 rad/s) which orbits the starts' Newton solves and marches land on depends
     on the rounding of every earlier step, so the branches found there, and their cost,
-    differ from one draw to the next:
-    one run is one sample of that spread."""
+    differ from one draw to the next: one run is one sample of that spread."""
     kv = aj.KelvinVoigt(stiffness=2e4, damping=2.0, adhesive=True)
     e = aj.restitution_of(kv, 0.2, 1.0)
     for name, contact in ((f"rigid e={e:.4f}", aj.Restitution(e)), ("penalty KV 2e4", kv)):

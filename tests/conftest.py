@@ -37,7 +37,7 @@ MAX_MAPS = 20_000
 
 def _drop_executables():
     """Drop JAX's in-memory compiled executables, keeping its traces (JAX's private caches;
-    all of JAX's caches, ``jax.clear_caches``, where this JAX has other names)."""
+    nothing where this JAX names them otherwise: the caller then drops every cache)."""
     try:
         from jax._src import pjit
         from jax._src.interpreters import pxla
@@ -48,7 +48,7 @@ def _drop_executables():
                   pjit._cpp_pjit_cache_explicit_attributes.clear,
                   _jax.PjitFunctionCache.clear_all)
     except (ImportError, AttributeError):
-        caches = (jax.clear_caches,)
+        return
     for clear in caches:
         clear()
 
@@ -59,7 +59,7 @@ def _release_compiled_programs():
     if _memory_maps() > MAX_MAPS:
         _drop_executables()
         gc.collect()
-        if _memory_maps() > MAX_MAPS // 2:     # something else holds them: drop everything
+        if _memory_maps() > MAX_MAPS // 2:     # not released: drop every cache
             jax.clear_caches()
             gc.collect()
 

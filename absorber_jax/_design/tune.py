@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import check_scalar, require_x64
+from .._core.devices import by_parts, put
 from .._core.legacy import moved, no_more
 from .._core.status import Status
 from .._integration.settings import Integrator, integrator_from
@@ -158,22 +159,19 @@ def value_and_grad(system, params, omegas, *, amplitude, objective=None, method=
 
 def _reseed(system, names, reparam, u, omegas, amplitude, status, states, cfg):
     """Internal-state guesses for a band: the converged states where ``status`` is 0, and
-    for the others the state marched from rest (``march_from_rest``, in fixed-size
-    batches: one compilation).  The design's own shooting then starts from them, so the
-    marches need no shooting of their own (no march-then-shoot program)."""
+    for the others the state marched from rest (``march_from_rest``, in padded batches of
+    ``RETRY_BATCH`` by ``by_parts``: one compilation).  The design's own shooting then
+    starts from them, so the marches need no shooting of their own (no march-then-shoot
+    program)."""
 
     p = np.asarray(reparam.forward(u))
     bad = np.flatnonzero(status != Status.SUCCESS)
     seeds = np.where((status == Status.SUCCESS)[:, None], states, np.nan)
-    for start in range(0, bad.size, RETRY_BATCH):
-        idx = bad[start:start + RETRY_BATCH]
-        pad = np.concatenate([idx, np.repeat(idx[-1:], RETRY_BATCH - idx.size)])
-        _, marched = march_chunk(system, jnp.asarray(np.asarray(omegas)[pad]),
-                                 jnp.asarray(amplitude, dtype=float),
-                                 jnp.asarray(np.tile(p, (RETRY_BATCH, 1))), cfg, names, False,
-                                 jnp.asarray(np.arange(RETRY_BATCH) < idx.size))
-        marched = np.asarray(marched)[:idx.size]
-        seeds[idx] = marched
+    if bad.size:
+        om, pv = np.asarray(omegas), np.tile(p, (RETRY_BATCH, 1))
+        amp = jnp.asarray(amplitude, dtype=float)
+        _, seeds[bad] = by_parts(bad, RETRY_BATCH, lambda i, live, d: march_chunk(
+            system, put(om[i], d), amp, put(pv, d), cfg, names, False, put(live, d)), 1)
     return seeds
 
 

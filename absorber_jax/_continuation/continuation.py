@@ -56,6 +56,7 @@ import numpy as np
 from .._core.checks import check_scalar, check_state, require_x64
 from .._core.legacy import moved, no_more
 from .._core.status import Status
+from .._core.units import signals_of
 from .._integration.flow import (
     state_scale,
 )
@@ -354,7 +355,8 @@ def _band_result(out, parameter, lo, hi, system):
         warnings.warn(f"band_continuation: no branch reached {parameter} in {parts}; try: "
                       f"more starts or fill passes, or aj.attractors there (the response "
                       f"may not be periodic)", RuntimeWarning, stacklevel=3)
-    return tuple(_branch(*r, drv, v, system) for r, drv, v in out)
+    signals = signals_of(system)
+    return tuple(_branch(*r, drv, v, system, signals) for r, drv, v in out)
 
 
 def _start_cells(values, limits, live):

@@ -69,22 +69,25 @@ class _Driver:
     """Holds the compiled corrector's inputs and the branch being built."""
 
     def __init__(self, prob, method, bounds):
-        self.prob, self.method = prob, method
+        # the state scale and section held on the host: the driver reads them at every
+        # point, and a batch stacks its lanes' (a device array would be copied back each
+        # time)
+        self.prob = dataclasses.replace(prob, s0=np.asarray(prob.s0),
+                                        section=np.asarray(prob.section))
+        self.method = method
         self.lo, self.hi = (b / float(prob.pscale) for b in bounds)
 
     def solve(self, z_pred, t_prev, patient=False):
         """The corrector from ``z_pred`` on the hyperplane normal to ``t_prev``, now
         (``patient``: the whole Newton budget, for a first orbit from a far guess)."""
-        return self.point(*_corrector(self.prob, jnp.asarray(z_pred), jnp.asarray(t_prev),
-                                      self.method.tol, self.method.newton_steps,
-                                      jnp.asarray(patient)))
+        return self.point(*jax.device_get(_corrector(
+            self.prob, jnp.asarray(z_pred), jnp.asarray(t_prev), self.method.tol,
+            self.method.newton_steps, jnp.asarray(patient))))
 
     def point(self, z, t, ss, sec, sc):
-        """A corrector's output as a branch point (numpy): ``xi`` its internal state on the
-        driver's section, ``x0`` at ``t = 0``, ``sec`` its ``Section``, ``sc`` the state
-        scale at its parameter value."""
-        ss, sec = jax.tree_util.tree_map(np.asarray, (ss, sec))
-        z = np.asarray(z)
+        """A corrector's output (numpy arrays) as a branch point: ``xi`` its internal state
+        on the driver's section, ``x0`` at ``t = 0``, ``sec`` its ``Section``, ``sc`` the
+        state scale at its parameter value."""
         return dict(z=z, t=np.asarray(t), ss=ss, sec=sec, xi=z[:-1] * np.asarray(self.prob.s0),
                     x0=sec.at_zero, mult=np.asarray(ss.multipliers),
                     ok=int(ss.status) == Status.SUCCESS, sc=np.asarray(sc),
@@ -108,7 +111,7 @@ class _Driver:
                 and abs(tp) >= RESECTION_TANGENT):
             return point
         old = self.prob
-        self.prob = dataclasses.replace(old, section=jnp.asarray(int(sec.best)))
+        self.prob = dataclasses.replace(old, section=np.asarray(int(sec.best)))
         z = np.append(sec.best_state / np.asarray(self.prob.s0), point["z"][-1])
         e = np.zeros_like(z)
         e[-1] = np.sign(tp)
@@ -130,7 +133,7 @@ class _Driver:
         s_old = np.asarray(self.prob.s0)
         sc = point["sc"]
         s_new = sc * max(1.0, float(np.max(np.abs(point["xi"] / sc))))
-        self.prob = dataclasses.replace(self.prob, s0=jnp.asarray(s_new))
+        self.prob = dataclasses.replace(self.prob, s0=s_new)
         z, t = _in_scale(point, s_old, s_new)
         return dict(point, z=z, t=t, s0=s_new, section=int(self.prob.section))
 
@@ -209,14 +212,16 @@ def _bar(total, parameter, progress):
     return tqdm(total=total, desc=f"continuation in {parameter}", disable=not progress)
 
 
-def _branch(points, bifs, termination, drv, value0, system):
+def _branch(points, bifs, termination, drv, value0, system, signals=None):
+    """The ``Branch`` of the points followed (``signals``: the system's, when the caller
+    builds many branches of one system)."""
     steady = jax.tree_util.tree_map(lambda *a: np.stack(a), *[q["ss"] for q in points])
     pscale = float(drv.prob.pscale)
     values = np.array([q["z"][-1] * pscale if "z" in q else value0 for q in points])
     return Branch(parameter=drv.prob.parameter, values=values, steady=nan_where_failed(steady),
                   bifurcations=tuple(bifs), period_multiple=drv.prob.n,
                   termination=termination, dof_names=tuple(system.output_names),
-                  signals=signals_of(system))
+                  signals=signals_of(system) if signals is None else signals)
 
 
 def _first_orbit(drv, guesses, e):
@@ -647,10 +652,11 @@ def _run_batched(gens, prob, method, lanes=None):
         zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
         pa = np.asarray([bool(r[3]) for r in reqs])
         with one_blas_thread(parts):
-            out = jax.tree_util.tree_map(np.asarray, _corrector_many(
+            out = jax.device_get(_corrector_many(
                 prob, s0, sec, zp, tp, pa, live, method.tol, method.newton_steps, parts))
+        leaves, tree = jax.tree_util.tree_flatten(out)
         for j, i in zip(at, idx):
-            point = pending[i][0].point(*jax.tree_util.tree_map(lambda a, j=j: a[j], out))
+            point = pending[i][0].point(*tree.unflatten([a[j] for a in leaves]))
             try:
                 pending[i] = gens[i].send(point)
             except StopIteration as stop:

@@ -13,7 +13,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.devices import device_parts, lanes_on_devices, one_blas_thread
+from .._core.devices import (
+    device_parts,
+    lanes_on_devices,
+    one_blas_thread,
+    placed_for_lanes,
+)
 from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
 from .._integration.flow import (
@@ -636,6 +641,7 @@ def _run_batched(gens, prob, method, lanes=None):
     sizes = [lanes] + ([lanes // 4] if lanes >= 8 and not serial else [])
     results = [None] * len(gens)
     pending = {}
+    shared = {}                 # prob placed on the devices, by their number
     for i, g in enumerate(gens):
         try:
             pending[i] = next(g)
@@ -647,13 +653,16 @@ def _run_batched(gens, prob, method, lanes=None):
         parts = device_parts(size) if split else 1
         at, slot, live = _placed(len(idx), size, parts)
         reqs = [pending[idx[k]] for k in slot]
-        s0 = np.stack([np.asarray(r[0].prob.s0) for r in reqs])
-        sec = np.stack([np.asarray(r[0].prob.section) for r in reqs])
-        zp, tp = np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs])
-        pa = np.asarray([bool(r[3]) for r in reqs])
+        lane_inputs = (np.stack([np.asarray(r[0].prob.s0) for r in reqs]),
+                       np.stack([np.asarray(r[0].prob.section) for r in reqs]),
+                       np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs]),
+                       np.asarray([bool(r[3]) for r in reqs]), live)
+        if parts not in shared:
+            shared[parts] = placed_for_lanes(prob, None, parts)
+        _, lane_inputs = placed_for_lanes((), lane_inputs, parts)
         with one_blas_thread(parts):
             out = jax.device_get(_corrector_many(
-                prob, s0, sec, zp, tp, pa, live, method.tol, method.newton_steps, parts))
+                shared[parts], *lane_inputs, method.tol, method.newton_steps, parts))
         leaves, tree = jax.tree_util.tree_flatten(out)
         for j, i in zip(at, idx):
             point = pending[i][0].point(*tree.unflatten([a[j] for a in leaves]))

@@ -313,28 +313,46 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
                     pscale=jnp.asarray(max(abs(lo), abs(hi))), cfg=cfg, parameter=parameter,
                     n=n)
     lanes = 2 * len(values)                 # the batch of the half-branches, for every phase
-    out = []
     with _bar(method.max_points * lanes, parameter, progress) as bar:
-        out += _band_pass(base, method, values, [(lo, hi)] * len(values), lanes, locate, bar)
+        out, _ = _band_pass(base, method, values, [(lo, hi)] * len(values), lanes, locate,
+                            bar)
+        done = 0                            # out[:done]: their bifurcations are in hand
         for _ in range(fill):
             values, limits = _fill_starts(_gaps(out, lo, hi), lanes // 2)
             if not values.size:
                 break
             bar.total += method.max_points * 2 * values.size
-            out += _band_pass(base, method, values, limits, lanes, locate, bar, linear=False)
-        # the bifurcations of all the half-branches located together (each a few corrector
-        # solves in turn: one after the other on its branch, the Hertz band's main pass
-        # took 91 rounds of its batch, 37 bifurcations of 1-19 solves each)
-        # (one location for a bifurcation seen twice: ``_shared``)
-        todo = [(i, j) for i, ((_, bifs, _), _, _) in enumerate(out)
-                for j, b in enumerate(bifs) if isinstance(b, tuple)]
-        args = [out[i][0][1][j] for i, j in todo]
-        first, brackets = _shared(args, [i for i, _ in todo])
-        own = [k for k, f in enumerate(first) if f == k]
-        found = dict(zip(own, _run_batched([_bifurcation(*args[k]) for k in own], base,
-                                           method, lanes)))
-        # a location that failed, or lies off the other's bracket (another bifurcation of
-        # the same kind, or a bracket too curved to tell): located on its own
+            # the bifurcations of the passes so far are located in the batch of this one,
+            # in the lanes its half-branches leave free (most of its rounds hold the few
+            # that snake through folds)
+            gens, finish = _located_later(out, done, base, method, lanes)
+            done = len(out)
+            more, found = _band_pass(base, method, values, limits, lanes, locate, bar,
+                                     linear=False, extra=gens)
+            finish(found)
+            out += more
+        gens, finish = _located_later(out, done, base, method, lanes)
+        finish(_run_batched(gens, base, method, lanes))
+    return _band_result(out, parameter, lo, hi, system)
+
+
+def _located_later(out, start, base, method, lanes):
+    """The bifurcations the half-branches ``out[start:]`` deferred, located together:
+    ``(generators, finish)``, the corrector requests' generators of those to locate (one
+    location for a bifurcation two half-branches saw: ``_shared``; each a few corrector
+    solves in turn, so a batch of them, the Hertz band's main pass took 91 rounds of its
+    batch, 37 bifurcations of 1-19 solves each) and ``finish(results)``, which puts their
+    results (in the generators' order) in their branches' places, locating on its own
+    each whose shared location lies off its own bracket (another bifurcation of the same
+    kind, or a bracket too curved to tell) or failed."""
+    todo = [(i, j) for i, ((_, bifs, _), _, _) in enumerate(out) if i >= start
+            for j, b in enumerate(bifs) if isinstance(b, tuple)]
+    args = [out[i][0][1][j] for i, j in todo]
+    first, brackets = _shared(args, [i for i, _ in todo])
+    own = [k for k, f in enumerate(first) if f == k]
+
+    def finish(results):
+        found = dict(zip(own, results))
         again = [k for k, f in enumerate(first) if f != k
                  and not _inside(brackets[k], found[f])]
         found.update(zip(again, _run_batched([_bifurcation(*args[k]) for k in again], base,
@@ -343,7 +361,8 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
             # a location taken from the other sighting cost this one no solve
             b, spent = (found[k], found[k].evaluations) if k in found else (found[first[k]], 0)
             out[i][0][1][j] = dataclasses.replace(b, index=args[k][4], evaluations=spent)
-    return _band_result(out, parameter, lo, hi, system)
+
+    return [_bifurcation(*args[k]) for k in own], finish
 
 
 def _band_result(out, parameter, lo, hi, system):
@@ -410,10 +429,12 @@ def _balance_pass(system, forcing, parameter, orbit, cfg, method, values, limits
     return out
 
 
-def _band_pass(base, method, values, limits, lanes, locate, bar, linear=True):
+def _band_pass(base, method, values, limits, lanes, locate, bar, linear=True, extra=()):
     """Half-branches from the start ``values`` (start ``i`` followed within ``limits[i]``),
-    all together; returns ``[(result, driver, start value)]``, two per start (down, up).
-    ``linear``: first guesses from the scaled linear response before the close returns
+    all together; returns ``[(result, driver, start value)]``, two per start (down, up),
+    and the results of the generators ``extra`` (other corrector requests, served in the
+    lanes the half-branches leave free: after them in the batch).  ``linear``: first
+    guesses from the scaled linear response before the close returns
     (the fill passes go to the close returns at once: their starts lie where the branches
     snake, near a resonance, where Newton from the linear response fails, and the failures
     cost the most: the Hertz band's fill passes spent 30 of 93 s on them); a start with no
@@ -456,8 +477,9 @@ def _band_pass(base, method, values, limits, lanes, locate, bar, linear=True):
             drivers.append(drv)
             gens.append(_follow(drv, dict(first, t=sign * first["t"]), None, locate, bar,
                                 defer=True))
-    results = _run_batched(gens, base, method, lanes)
-    return [(r, drv, float(v)) for r, drv, v in zip(results, drivers, np.repeat(values, 2))]
+    results = _run_batched(gens + list(extra), base, method, lanes)
+    return ([(r, drv, float(v)) for r, drv, v in zip(results, drivers, np.repeat(values, 2))],
+            results[len(gens):])
 
 
 def _fill_starts(gaps, count):

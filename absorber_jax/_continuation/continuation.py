@@ -264,7 +264,9 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
       scene: the branches from 27.8 and 30.9 rad/s turn at folds at 28.35 and 29.25 rad/s;
       2 passes cover both hard-contact scenes' 20–45 rad/s whole).
 
-    The bifurcations of all the half-branches are located together once the passes end.
+    The bifurcations the half-branches pass are located together, in batches: those of
+    each pass in the next fill pass's batch (in the lanes its half-branches leave free),
+    those of the last pass after it.
 
     With ``orbit=HarmonicBalance(...)`` the half-branches are balanced orbits (period 1,
     as ``continuation``), followed one after the other (one compiled corrector serves them

@@ -318,15 +318,15 @@ def band_continuation(system: AbstractSystem, forcing: AbstractPeriodicForcing,
     with _bar(method.max_points * lanes, parameter, progress) as bar:
         out, _ = _band_pass(base, method, values, [(lo, hi)] * len(values), lanes, locate,
                             bar)
-        done = 0                            # out[:done]: their bifurcations are in hand
+        done = 0                            # out[:done]: their bifurcations handed out
         for _ in range(fill):
             values, limits = _fill_starts(_gaps(out, lo, hi), lanes // 2)
             if not values.size:
                 break
             bar.total += method.max_points * 2 * values.size
-            # the bifurcations of the passes so far are located in the batch of this one,
-            # in the lanes its half-branches leave free (most of its rounds hold the few
-            # that snake through folds)
+            # the bifurcations not handed out yet (the last pass's) are located in the batch
+            # of this one, in the lanes its half-branches leave free (most of its rounds
+            # hold the few that snake through folds)
             gens, finish = _located_later(out, done, base, method, lanes)
             done = len(out)
             more, found = _band_pass(base, method, values, limits, lanes, locate, bar,
@@ -417,8 +417,8 @@ def _balance_start(system, forcing, parameter, orbit, cfg, method, value, pscale
 def _balance_pass(system, forcing, parameter, orbit, cfg, method, values, limits, bar):
     """Half-branches of balanced orbits from the start ``values`` (each start's first orbit
     balanced once, then followed down and up within ``limits[i]``: a branch that turns at a
-    fold inside them follows the orbits beyond it), one after the other, as ``_band_pass``
-    returns them."""
+    fold inside them follows the orbits beyond it), one after the other, listed as
+    ``_band_pass`` lists its half-branches."""
     out = []
     for v, lim in zip(values, limits):
         pscale = abs(float(v)) if v != 0 else max(abs(lim[0]), abs(lim[1]))
@@ -511,8 +511,7 @@ def _fill_starts(gaps, count):
 
 def _gaps(out, lo, hi):
     """The parts of ``(lo, hi)`` that no converged point of the half-branches ``out`` (as
-    ``_band_pass`` returns them) reached, wider than ``GAP`` of the band, widest
-    first."""
+    ``_band_pass`` lists them) reached, wider than ``GAP`` of the band, widest first."""
     spans = sorted((min(v), max(v)) for v in
                    ([q["z"][-1] * float(drv.prob.pscale) for q in pts if q["ok"]]
                     for (pts, _, _), drv, _ in out) if v)

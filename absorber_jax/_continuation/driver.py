@@ -116,7 +116,8 @@ class _Driver:
                 and abs(tp) >= RESECTION_TANGENT):
             return point
         old = self.prob
-        self.prob = dataclasses.replace(old, section=np.asarray(int(sec.best)))
+        self.prob = dataclasses.replace(
+            old, section=np.asarray(int(sec.best), dtype=np.asarray(old.section).dtype))
         z = np.append(sec.best_state / np.asarray(self.prob.s0), point["z"][-1])
         e = np.zeros_like(z)
         e[-1] = np.sign(tp)
@@ -298,9 +299,9 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     each and returns ``(points, bifurcations, termination)`` (``_run`` serves it one
     request at a time, ``_run_batched`` many branches' requests in one vmapped call).
     ``defer``: the bifurcations to locate are returned as the arguments of
-    ``_bifurcation`` (a copy of the driver as it was), for the caller to locate them
-    all together (``band_continuation``), instead of one after the other here, the
-    branch's other steps waiting."""
+    ``_bifurcation`` (a copy of the driver as it was), for the caller to locate them in
+    batches with other branches' (``band_continuation``), instead of one after the other
+    here, the branch's other steps waiting."""
     method = drv.method
     points = [(yield from drv.resection(drv.rescale(first))) if first["ok"] else first]
     bifs = []

@@ -17,7 +17,8 @@ from .._core.devices import (
     device_parts,
     lanes_on_devices,
     one_blas_thread,
-    placed_for_lanes,
+    replicated,
+    split_over,
 )
 from .._core.status import Status, nan_where_failed
 from .._core.units import signals_of
@@ -654,13 +655,13 @@ def _run_batched(gens, prob, method, lanes=None):
         parts = device_parts(size) if split else 1
         at, slot, live = _placed(len(idx), size, parts)
         reqs = [pending[idx[k]] for k in slot]
-        lane_inputs = (np.stack([np.asarray(r[0].prob.s0) for r in reqs]),
-                       np.stack([np.asarray(r[0].prob.section) for r in reqs]),
-                       np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs]),
-                       np.asarray([bool(r[3]) for r in reqs]), live)
+        lane_inputs = split_over((np.stack([r[0].prob.s0 for r in reqs]),
+                                  np.stack([r[0].prob.section for r in reqs]),
+                                  np.stack([r[1] for r in reqs]),
+                                  np.stack([r[2] for r in reqs]),
+                                  np.asarray([bool(r[3]) for r in reqs]), live), parts)
         if parts not in shared:
-            shared[parts] = placed_for_lanes(prob, None, parts)
-        _, lane_inputs = placed_for_lanes((), lane_inputs, parts)
+            shared[parts] = replicated(prob, parts)
         with one_blas_thread(parts):
             out = jax.device_get(_corrector_many(
                 shared[parts], *lane_inputs, method.tol, method.newton_steps, parts))

@@ -220,23 +220,26 @@ def _mesh(ndev):
     return Mesh(np.array(jax.local_devices()[:ndev]), ("lanes",))
 
 
-def placed_for_lanes(shared, lanes, ndev):
-    """``lanes_on_devices``' inputs put where its program runs them, in two transfers:
-    ``shared``'s arrays replicated on the ``ndev`` devices, each of ``lanes`` (arrays, lane
-    axis first) split over them.  A caller that calls it again and again with the same
-    ``shared`` (a continuation's batched corrector, hundreds of calls) places ``shared``
-    once (``lanes`` None: ``shared`` alone) and saves the copy at every call (the hard
-    rigid band's empty corrector call on two CPU devices: 2.7 ms as given, 2.0 ms with
-    ``shared`` placed, 1.5 ms with the lanes placed too).  One device: as given."""
+def replicated(shared, ndev):
+    """``shared``'s arrays replicated on the first ``ndev`` local devices, where
+    ``lanes_on_devices`` runs them (one device: as given).  A caller that calls it again
+    and again with the same ``shared`` (a continuation's batched corrector, hundreds of
+    calls) places it once and saves the copy at every call (the hard rigid band's empty
+    corrector call on two CPU devices: 2.7 ms as given, 2.0 ms with ``shared`` placed,
+    1.5 ms with the lanes placed by ``split_over`` too)."""
     if ndev <= 1:
-        return shared if lanes is None else (shared, lanes)
-    mesh = _mesh(ndev)
-    dynamic, static = eqx.partition(shared, eqx.is_array)
-    shared = eqx.combine(jax.device_put(dynamic, NamedSharding(mesh, PartitionSpec())),
-                         static)
-    if lanes is None:
         return shared
-    return shared, jax.device_put(lanes, NamedSharding(mesh, PartitionSpec("lanes")))
+    dynamic, static = eqx.partition(shared, eqx.is_array)
+    return eqx.combine(jax.device_put(dynamic, NamedSharding(_mesh(ndev), PartitionSpec())),
+                       static)
+
+
+def split_over(lanes, ndev):
+    """The arrays ``lanes`` (lane axis first) split over the first ``ndev`` local devices
+    as ``lanes_on_devices`` splits them, in one transfer (one device: as given)."""
+    if ndev <= 1:
+        return lanes
+    return jax.device_put(lanes, NamedSharding(_mesh(ndev), PartitionSpec("lanes")))
 
 
 def device_parts(size):

@@ -41,9 +41,12 @@ times (orbit statistics) forward-mode AD differentiates the windows themselves. 
 (a period map: shooting's and continuation's Jacobians, Floquet multipliers) the windows
 run on values and the segment carries a custom JVP (``_flight``): the JVP of ``e^{Âτ} z``
 over the segment's duration ``τ``, by ``expm`` (its Fréchet derivative where the
-parameters carry tangents).  For a period map's derivative in the parameters,
-``flight_linearizations`` linearizes a batch of recorded segments at once (the replay of
-``stickslip.closed_form_jacobian``).
+parameters carry tangents).  The forcing frequency alone, where it enters ``Â`` only
+through the oscillators' rotation block (``frequency_in_rotation_only``: continuation and
+sweeps in ``omega``), is a direction of the windows' integration like the state, its
+tangent from one exponential of ``2J`` more rows a segment (``_frequency_jvp``).  For a
+period map's derivative in other parameters, ``flight_linearizations`` linearizes a
+batch of recorded segments at once (the replay of ``stickslip.closed_form_jacobian``).
 
 Systems declare such modes through ``AbstractHybridSystem.affine_modes``; the matrices
 are taken from ``mode_rate`` by forward-mode AD with the forcing's value as an input.
@@ -93,8 +96,22 @@ def mode_matrix(system, forcing, mode, scale, t):
     """``Â`` of ``mode`` on the scaled state: ``ż = Â z`` with
     ``z = (x, 1, cos k_jωt, sin k_jωt, …)`` (module docstring).  ``t``: any time [s] (the
     modes are time-invariant); no tangent."""
-    orders, c = forcing.harmonics()
-    orders = jnp.asarray(orders, dtype=float)
+    orders = jnp.asarray(forcing.harmonics()[0], dtype=float)
+    n = scale.shape[0]
+    top = _mode_rows(system, forcing, mode, scale, t)
+    J = orders.shape[0]
+    kw = orders * forcing.omega
+    blocks = jnp.zeros((2 * J, 2 * J), scale.dtype)
+    idx = jnp.arange(J)
+    blocks = blocks.at[2 * idx, 2 * idx + 1].set(-kw).at[2 * idx + 1, 2 * idx].set(kw)
+    lower = jnp.zeros((1 + 2 * J, n + 1 + 2 * J), scale.dtype)
+    lower = lower.at[1:, n + 1:].set(blocks)
+    return jnp.concatenate([top, lower], axis=0)
+
+
+def _mode_rows(system, forcing, mode, scale, t):
+    """The state's rows of ``mode_matrix``: ``(A, d, b Im c_1, b Re c_1, …)``."""
+    _, c = forcing.harmonics()
     n = scale.shape[0]
 
     def rate(x, f):
@@ -105,15 +122,7 @@ def mode_matrix(system, forcing, mode, scale, t):
     d = rate(x0, f0)
     A, b = jax.jacfwd(rate, argnums=(0, 1))(x0, f0)
     forced = jnp.stack([jnp.imag(c), jnp.real(c)], axis=-1).reshape(-1)  # (2J,)
-    top = jnp.concatenate([A, d[:, None], b[:, None] * forced[None, :]], axis=1)
-    J = orders.shape[0]
-    kw = orders * forcing.omega
-    blocks = jnp.zeros((2 * J, 2 * J), scale.dtype)
-    idx = jnp.arange(J)
-    blocks = blocks.at[2 * idx, 2 * idx + 1].set(-kw).at[2 * idx + 1, 2 * idx].set(kw)
-    lower = jnp.zeros((1 + 2 * J, n + 1 + 2 * J), scale.dtype)
-    lower = lower.at[1:, n + 1:].set(blocks)
-    return jnp.concatenate([top, lower], axis=0)
+    return jnp.concatenate([A, d[:, None], b[:, None] * forced[None, :]], axis=1)
 
 
 def _exact_flight(system, forcing, mode, scale, x, t, tau):
@@ -142,6 +151,8 @@ def exact_flight(system, forcing, mode, scale, x, t, tau):
 def _exact_flight_jvp(primals, tangents):
     system, forcing, mode, scale, x, t, tau = primals
     t_sys, t_forc, _, t_scale, dx, dt, dtau = tangents
+    if _moves_frequency_alone(system, forcing, t_sys, t_forc):
+        return _frequency_jvp(primals, tangents)
     if any(leaf is not None for leaf in jax.tree_util.tree_leaves(
             (t_sys, t_forc, t_scale), is_leaf=lambda a: a is None)):
         # the parameters move the exponent: the Fréchet derivative, in every direction
@@ -159,6 +170,117 @@ def _exact_flight_jvp(primals, tangents):
 
 def _zero_if_none(tangent, primal):
     return jnp.zeros_like(primal) if tangent is None else tangent
+
+
+def _frequency_jvp(primals, tangents):
+    r"""``exact_flight``'s JVP where, of the parameters, only the forcing frequency ``ω``
+    (and the caller's ``scale``) carries a tangent, and ``ω`` enters ``Â`` only through
+    its rotation block ``ω K`` (``frequency_in_rotation_only``).
+
+    Then ``∂Â/∂ω`` is ``K`` in the rows and columns of the oscillators, and the Fréchet
+    derivative of ``e^{Âτ}`` in that direction, applied to ``z``, is
+    ``W K z_osc`` with ``W = ∫_0^τ e^{Â(τ-s)} P e^{Ωs} ds`` (``P`` the oscillators' rows,
+    ``Ω`` their block; ``K`` commutes with ``e^{Ωs}``): the top right block of the
+    exponential of ``[[Â, P], [0, Ω]] τ`` (C. Van Loan, *Computing integrals involving
+    the matrix exponential*, IEEE Trans. Automat. Control 23 (1978) 395).  One exponential
+    of ``2J`` more rows serves every direction, where the Fréchet derivative would take
+    one a direction.  The flight is computed on the system's own state scale held fixed
+    (the flow does not depend on it)."""
+    system, forcing, mode, scale, x, t, tau = primals
+    t_sys, t_forc, _, t_scale, dx, dt, dtau = tangents
+    n = x.shape[0]
+    nat = _sg(system.state_scale(forcing))
+    A, E, W, K = _frequency_exponential(system, forcing, mode, nat, t, tau)
+
+    def start(x_, t_, forcing_, scale_):
+        return augmented_state(x_ * (scale_ / nat), forcing_, t_), scale_ / nat
+
+    (z, ratio), (dz, dratio) = eqx.filter_jvp(start, (x, t, forcing, scale),
+                                              (dx, dt, t_forc, t_scale))
+    d_omega = _zero_if_none(t_forc.omega, forcing.omega)
+    dz, dratio = _zero_if_none(dz, z), _zero_if_none(dratio, ratio)
+    Ez = E @ z
+    dEz = E @ dz + (A @ Ez) * _zero_if_none(dtau, tau) + (W @ (K @ z[n + 1:])) * d_omega
+    y = Ez[:n] / ratio
+    return y, (dEz[:n] - y * dratio) / ratio
+
+
+def _frequency_exponential(system, forcing, mode, nat, t, tau):
+    """``(Â, e^{Âτ}, W, K)`` of one flight (``_frequency_jvp``), ``Â`` on the state scale
+    ``nat`` (no tangent), ``K = ∂Ω/∂ω``; values only."""
+    system, forcing, mode, t, tau = _values((system, forcing, mode, t, tau))
+    A = mode_matrix(system, forcing, mode, nat, t)
+    N, J2 = A.shape[0], 2 * len(forcing.harmonics()[0])
+    M = jnp.zeros((N + J2, N + J2), A.dtype)
+    M = M.at[:N, :N].set(A).at[N - J2:N, N:].set(jnp.eye(J2, dtype=A.dtype))
+    M = M.at[N:, N:].set(A[N - J2:, N - J2:])
+    X = expm((M * tau)[:, :, None])[:, :, 0]
+    orders = jnp.asarray(forcing.harmonics()[0], dtype=A.dtype)
+    K = jnp.zeros((J2, J2), A.dtype)
+    idx = jnp.arange(J2 // 2)
+    K = K.at[2 * idx, 2 * idx + 1].set(-orders).at[2 * idx + 1, 2 * idx].set(orders)
+    return A, X[:N, :N], X[:N, N:], K
+
+
+def _moves_frequency_alone(system, forcing, t_sys, t_forc):
+    """Whether the tangents ``(t_sys, t_forc)`` of ``exact_flight``'s system and forcing
+    move the forcing frequency alone, in a system and forcing where it enters the mode
+    matrices through their rotation block only (``_frequency_jvp``)."""
+    is_none = lambda a: a is None  # noqa: E731
+    if any(a is not None for a in jax.tree_util.tree_leaves(t_sys, is_leaf=is_none)):
+        return False
+    leaf = frequency_leaf(forcing)
+    if leaf is None:
+        return False
+    tl = jax.tree_util.tree_leaves(t_forc, is_leaf=is_none)
+    return (all(a is None for i, a in enumerate(tl) if i != leaf)
+            and frequency_in_rotation_only(system, forcing))
+
+
+def frequency_leaf(forcing):
+    """The index of ``forcing.omega`` among the forcing's leaves (``None`` counted as
+    leaves), or ``None`` where the frequency is not a field of its own."""
+    is_none = lambda a: a is None  # noqa: E731
+    mark = object()
+    try:
+        marked = eqx.tree_at(lambda f: f.omega, forcing, replace=mark, is_leaf=is_none)
+    except (ValueError, TypeError, AttributeError):
+        return None
+    hits = [i for i, a in enumerate(jax.tree_util.tree_leaves(marked, is_leaf=is_none))
+            if a is mark]
+    return hits[0] if len(hits) == 1 else None
+
+
+def frequency_in_rotation_only(system, forcing) -> bool:
+    """Whether the forcing frequency ``ω`` enters the mode matrices ``Â`` of ``system``
+    (on a fixed state scale) only through the oscillators' rotation block: checked on
+    the traced program of ``Â``'s other rows as a function of ``ω`` and the mode (a
+    forcing whose coefficients depend on ``ω``, or modes that read it, fail)."""
+    system, forcing = _values((system, forcing))
+    nat = system.state_scale(forcing)
+    if frequency_leaf(forcing) is None:
+        return False
+
+    def top(omega, mode):
+        f = eqx.tree_at(lambda f_: f_.omega, forcing, omega)
+        return _mode_rows(system, f, mode, nat, 0.0)
+
+    mode = jax.eval_shape(lambda: system.mode_of(0.0, jnp.zeros_like(nat), forcing))
+    return not _depends_on_first(top, jnp.asarray(forcing.omega, dtype=float),
+                                 jnp.zeros(mode.shape, mode.dtype))
+
+
+def _depends_on_first(fn, *args) -> bool:
+    """Whether the traced program of ``fn(*args)`` computes any output from its first
+    argument (a dataflow check of the jaxpr, nested programs counted whole)."""
+    from jax.extend.core import Var
+    jaxpr = jax.make_jaxpr(fn)(*args).jaxpr
+    live = set(jax.tree_util.tree_leaves(jaxpr.invars[:len(jax.tree_util.tree_leaves(
+        args[0]))]))
+    for eqn in jaxpr.eqns:
+        if any(isinstance(v, Var) and v in live for v in eqn.invars):
+            live.update(eqn.outvars)
+    return any(isinstance(v, Var) and v in live for v in jaxpr.outvars)
 
 
 def flight_linearizations(system, forcing, modes, scale, xs, ts, taus):

@@ -140,10 +140,11 @@ def exact_flight(system, forcing, mode, scale, x, t, tau):
     Its JVP (``_exact_flight_jvp``) takes the tangents in the state and the times in
     closed form, ``dy = [e^{Âτ} dz + Â e^{Âτ} z dτ]_{1..n}`` with ``dz`` the augmented
     state's tangent in ``x`` and ``t`` (``Â`` is time-invariant and commutes with its
-    exponential): one exponential serves every direction.  Where the parameters (system,
-    forcing, scale) carry tangents, the exponent moves and the JVP is the Fréchet
-    derivative's.  A fixed-sequence solve (``_continuation.sequence``) differentiates in
-    states and event times alone."""
+    exponential): one exponential serves every direction.  Where the forcing frequency
+    alone moves the exponent (``_frequency_jvp``), one exponential of ``2J`` more rows
+    serves every direction too; where other parameters (system, forcing) carry tangents,
+    the JVP is the Fréchet derivative's.  A fixed-sequence solve
+    (``_continuation.sequence``) differentiates in states and event times alone."""
     return _exact_flight(system, forcing, mode, scale, x, t, tau)
 
 

@@ -152,10 +152,10 @@ def exact_flight(system, forcing, mode, scale, x, t, tau):
 def _exact_flight_jvp(primals, tangents):
     system, forcing, mode, scale, x, t, tau = primals
     t_sys, t_forc, _, t_scale, dx, dt, dtau = tangents
-    if _moves_frequency_alone(system, forcing, t_sys, t_forc):
-        return _frequency_jvp(primals, tangents)
     if any(leaf is not None for leaf in jax.tree_util.tree_leaves(
             (t_sys, t_forc, t_scale), is_leaf=lambda a: a is None)):
+        if _moves_frequency_alone(system, forcing, t_sys, t_forc):
+            return _frequency_jvp(primals, tangents)
         # the parameters move the exponent: the Fréchet derivative, in every direction
         return eqx.filter_jvp(_exact_flight, primals, tangents)
     n = x.shape[0]
@@ -189,6 +189,8 @@ def _frequency_jvp(primals, tangents):
     (the flow does not depend on it)."""
     system, forcing, mode, scale, x, t, tau = primals
     t_sys, t_forc, _, t_scale, dx, dt, dtau = tangents
+    if t_forc is None:
+        t_forc = jax.tree_util.tree_map(lambda _: None, forcing)
     n = x.shape[0]
     nat = _sg(system.state_scale(forcing))
     A, E, W, K = _frequency_exponential(system, forcing, mode, nat, t, tau)

@@ -186,33 +186,40 @@ def _frequency_jvp(primals, tangents):
     the matrix exponential*, IEEE Trans. Automat. Control 23 (1978) 395).  One exponential
     of ``2J`` more rows serves every direction, where the Fréchet derivative would take
     one a direction.  The flight is computed on the system's own state scale held fixed
-    (the flow does not depend on it)."""
+    (the flow does not depend on it).  Where the frequency carries no tangent (the
+    caller's ``scale`` alone does) the plain exponential serves.  The tangent is not
+    differentiable again (the exponentials are taken on values), as the replay's."""
     system, forcing, mode, scale, x, t, tau = primals
     t_sys, t_forc, _, t_scale, dx, dt, dtau = tangents
     if t_forc is None:
         t_forc = jax.tree_util.tree_map(lambda _: None, forcing)
     n = x.shape[0]
     nat = _sg(system.state_scale(forcing))
-    A, E, W, K = _frequency_exponential(system, forcing, mode, nat, t, tau)
+    moving = t_forc.omega is not None
+    A, E, W, K = _frequency_exponential(system, forcing, mode, nat, t, tau, moving)
 
     def start(x_, t_, forcing_, scale_):
         return augmented_state(x_ * (scale_ / nat), forcing_, t_), scale_ / nat
 
     (z, ratio), (dz, dratio) = eqx.filter_jvp(start, (x, t, forcing, scale),
                                               (dx, dt, t_forc, t_scale))
-    d_omega = _zero_if_none(t_forc.omega, forcing.omega)
     dz, dratio = _zero_if_none(dz, z), _zero_if_none(dratio, ratio)
     Ez = E @ z
-    dEz = E @ dz + (A @ Ez) * _zero_if_none(dtau, tau) + (W @ (K @ z[n + 1:])) * d_omega
+    dEz = E @ dz + (A @ Ez) * _zero_if_none(dtau, tau)
+    if moving:
+        dEz = dEz + (W @ (K @ z[n + 1:])) * t_forc.omega
     y = Ez[:n] / ratio
     return y, (dEz[:n] - y * dratio) / ratio
 
 
-def _frequency_exponential(system, forcing, mode, nat, t, tau):
+def _frequency_exponential(system, forcing, mode, nat, t, tau, moving=True):
     """``(Â, e^{Âτ}, W, K)`` of one flight (``_frequency_jvp``), ``Â`` on the state scale
-    ``nat`` (no tangent), ``K = ∂Ω/∂ω``; values only."""
+    ``nat`` (no tangent), ``K = ∂Ω/∂ω``; values only.  ``moving`` False: ``e^{Âτ}``
+    alone (``W``, ``K`` None)."""
     system, forcing, mode, t, tau = _values((system, forcing, mode, t, tau))
     A = mode_matrix(system, forcing, mode, nat, t)
+    if not moving:
+        return A, expm((A * tau)[:, :, None])[:, :, 0], None, None
     N, J2 = A.shape[0], 2 * len(forcing.harmonics()[0])
     M = jnp.zeros((N + J2, N + J2), A.dtype)
     M = M.at[:N, :N].set(A).at[N - J2:N, N:].set(jnp.eye(J2, dtype=A.dtype))
@@ -247,7 +254,7 @@ def frequency_leaf(forcing):
     mark = object()
     try:
         marked = eqx.tree_at(lambda f: f.omega, forcing, replace=mark, is_leaf=is_none)
-    except (ValueError, TypeError, AttributeError):
+    except Exception:  # noqa: BLE001 - a frequency computed by a property: not a leaf
         return None
     hits = [i for i, a in enumerate(jax.tree_util.tree_leaves(marked, is_leaf=is_none))
             if a is mark]
@@ -268,9 +275,12 @@ def frequency_in_rotation_only(system, forcing) -> bool:
         f = eqx.tree_at(lambda f_: f_.omega, forcing, omega)
         return _mode_rows(system, f, mode, nat, 0.0)
 
-    mode = jax.eval_shape(lambda: system.mode_of(0.0, jnp.zeros_like(nat), forcing))
-    return not _depends_on_first(top, jnp.asarray(forcing.omega, dtype=float),
-                                 jnp.zeros(mode.shape, mode.dtype))
+    try:
+        mode = jax.eval_shape(lambda: system.mode_of(0.0, jnp.zeros_like(nat), forcing))
+        return not _depends_on_first(top, jnp.asarray(forcing.omega, dtype=float),
+                                     jnp.zeros(mode.shape, mode.dtype))
+    except Exception:  # noqa: BLE001 - a forcing that cannot trace ω: the replay serves
+        return False
 
 
 def _depends_on_first(fn, *args) -> bool:

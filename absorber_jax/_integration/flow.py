@@ -342,7 +342,7 @@ def _closed_form_jacobian(primals, active, cfg):
     params = [i for i in active if i < n_dyn]
     leaf = frequency_leaf(dyn[1])
     if (leaf is not None and params == [n_sys + leaf]
-            and frequency_in_rotation_only(*dyn)):
+            and frequency_in_rotation_only(dyn[0].prepared(), dyn[1])):
         # the forcing frequency alone: a direction of the integration itself, as the
         # start state (``flights._frequency_jvp``), not of the replay
         params = []

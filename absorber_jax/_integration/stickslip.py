@@ -32,12 +32,14 @@ Where the flights are in closed form (``_integration.flights``) the derivative o
 map in the parameters is taken apart from that in the state (``closed_form_jacobian``):
 the integration, differentiated in the start state, records its segments (start and end
 times, modes, states), and the parameters' directions are those of a replay of the
-record (``_replay``).  Each segment's flight is there its linearization about the
-recorded flight, the propagator ``Φ`` and the parameters' tangent of the exact flow,
-computed ``REPLAY_BATCH`` segments at a time in one batched exponential (one Fréchet
-derivative a parameter, where the loop would differentiate one exponential a segment
-in every direction), and each event the saltation above, by the same code as the
-integration's (``_switch``).  The replay's values are the recorded ones.
+record (``_replay``; the forcing frequency alone, where it moves only the forcing's
+rotation, is a direction of the integration itself: ``flights._frequency_jvp``).  Each
+segment's flight is there its linearization about the recorded flight, the propagator
+``Φ`` and the parameters' tangent of the exact flow, computed ``REPLAY_BATCH`` segments
+at a time in one batched exponential (one Fréchet derivative a parameter, where the loop
+would differentiate one exponential a segment in every direction), and each event the
+saltation above, by the same code as the integration's (``_switch``).  The replay's
+values are the recorded ones.
 """
 
 from __future__ import annotations
@@ -331,10 +333,12 @@ def closed_form_jacobian(make, p, s, *, max_nodes, max_segments):
     """The final state of a closed-form hybrid integration without save times and its
     Jacobian in two groups of inputs: ``make(p, s)`` gives ``(system, forcing, x0, t0,
     t1, scale)`` from the parameters ``p`` (a vector: what enters the flights' modes) and
-    ``s`` (a vector: the start state, the start and final times; they do not).
+    ``s`` (a vector: the start state, the start and final times, and the forcing frequency
+    where it moves the modes' rotation block alone).
 
     ``J_s`` by forward mode through the integration, which records its segments (each
-    flight's tangent then needs the exponential alone, ``flights._flight``); ``J_p`` by
+    flight's tangent then needs the exponential alone, or with the oscillators' block
+    repeated for the frequency: ``flights._flight``); ``J_p`` by
     the replay of that record (``_replay``), each batch of flights linearized in ``p``
     (``F = ∂x_end/∂p``, the batched exponential's Fréchet derivative, one direction a
     parameter) and composed with the events' saltations.  Returns ``(J_p, J_s,

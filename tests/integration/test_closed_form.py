@@ -189,8 +189,9 @@ def test_batched_exponential_and_its_frechet_derivative_match_scipy():
 
 def test_jacobian_through_sticking_and_chatter_matches_central_differences():
     # a period of the orbit that chatters and sticks (e = 0.6 at 30 rad/s, held against a
-    # wall part of the period): the Jacobian in the state and the frequency, the flights'
-    # parameter directions replayed over the recorded segments, against central differences
+    # wall part of the period): the Jacobian in the state and the frequency (both through
+    # the integration, the frequency's by flights._frequency_jvp), against central
+    # differences
     from absorber_jax._integration.flow import (
         event_counts,
         integrate_flow,
@@ -221,7 +222,36 @@ def test_jacobian_through_sticking_and_chatter_matches_central_differences():
         np.testing.assert_allclose(J[:, i], fd, rtol=0, atol=1e-6 * max(1.0, np.max(np.abs(fd))))
 
 
-def test_frequency_column_by_van_loan_matches_the_frechet_replay():
+def test_frequency_jvp_of_one_flight_matches_the_frechet_derivative():
+    # exact_flight's JVP with the frequency moving (flights._frequency_jvp: Van Loan's
+    # block exponential) against the JVP through the exponential's Fréchet derivative
+    # (flights._exact_flight), with tangents in the state, the times, the scale and ω at
+    # once, orders 0, 1 and 3; and with the scale's tangent alone
+    from absorber_jax._integration import flights
+
+    system = _absorber(0.7)
+    f = aj.MultiHarmonic([3.0, 1.0, 0.5], omega=28.0, orders=(0, 1, 3), phases=(0.2, 0.0, 0.4))
+    scale = system.state_scale(f) * jnp.array([1.3, 0.7, 2.0, 0.9])
+    x, t, tau = jnp.array([0.3, -0.8, 0.1, 0.5]), jnp.asarray(0.011), jnp.asarray(0.037)
+    mode = jnp.asarray(0)
+    rng = np.random.default_rng(5)
+    d_scale = jnp.asarray(rng.normal(size=4)) * scale * 1e-2
+    no_force = jax.tree_util.tree_map(lambda _: None, f)
+    for d_omega in (jnp.asarray(0.7), None):
+        t_forc = eqx.tree_at(lambda g: g.omega, no_force, d_omega,
+                             is_leaf=lambda a: a is None)
+        moving = d_omega is not None
+        tangents = (jax.tree_util.tree_map(lambda _: None, system), t_forc, None, d_scale,
+                    jnp.asarray(rng.normal(size=4)) if moving else None,
+                    jnp.asarray(0.3) if moving else None, jnp.asarray(-0.2) if moving else None)
+        primals = (system, f, mode, scale, x, t, tau)
+        _, dy = flights._frequency_jvp(primals, tangents)
+        _, ref = eqx.filter_jvp(flights._exact_flight, primals, tangents)
+        np.testing.assert_allclose(np.asarray(dy), np.asarray(ref), rtol=0,
+                                   atol=1e-12 * float(jnp.max(jnp.abs(ref))))
+
+
+def test_frequency_column_by_van_loan_matches_the_frechet_replay(monkeypatch):
     # the period map's derivative in the forcing frequency alone goes through the
     # integration (flights._frequency_jvp: one exponential of 2J more rows a flight);
     # together with the amplitude it goes through the replay of the recorded flights
@@ -244,9 +274,17 @@ def test_frequency_column_by_van_loan_matches_the_frechet_replay():
         ys, _ = integrate_flow((system, f), x, f.period, None, cfg=cfg)
         return ys[-1]
 
+    from absorber_jax._integration import flights
+
+    traced = []
+    real = flights._frequency_jvp
+    monkeypatch.setattr(flights, "_frequency_jvp", lambda *a: traced.append(1) or real(*a))
     w, a = jnp.asarray(28.0), jnp.asarray(3.0)
     forward = np.asarray(jax.jit(jax.jacfwd(end))(w, a))
+    assert traced                        # the frequency went through the integration
+    traced.clear()
     replayed = np.asarray(jax.jit(jax.jacfwd(end, argnums=(0, 1)))(w, a)[0])
+    assert not traced                    # and here through the replay
     # measured: 4e-16 of the column's size between the two
     np.testing.assert_allclose(forward, replayed, rtol=0, atol=1e-10 * np.max(np.abs(forward)))
     assert np.max(np.abs(forward)) > 0.1

@@ -100,13 +100,18 @@ def mode_matrix(system, forcing, mode, scale, t):
     n = scale.shape[0]
     top = _mode_rows(system, forcing, mode, scale, t)
     J = orders.shape[0]
-    kw = orders * forcing.omega
-    blocks = jnp.zeros((2 * J, 2 * J), scale.dtype)
-    idx = jnp.arange(J)
-    blocks = blocks.at[2 * idx, 2 * idx + 1].set(-kw).at[2 * idx + 1, 2 * idx].set(kw)
+    blocks = _rotation(orders * forcing.omega, scale.dtype)
     lower = jnp.zeros((1 + 2 * J, n + 1 + 2 * J), scale.dtype)
     lower = lower.at[1:, n + 1:].set(blocks)
     return jnp.concatenate([top, lower], axis=0)
+
+
+def _rotation(rates, dtype):
+    """The oscillators' block of ``Â``: ``[[0, -r_j], [r_j, 0]]`` for each rate ``r_j``."""
+    J = rates.shape[0]
+    idx = jnp.arange(J)
+    return (jnp.zeros((2 * J, 2 * J), dtype).at[2 * idx, 2 * idx + 1].set(-rates)
+            .at[2 * idx + 1, 2 * idx].set(rates))
 
 
 def _mode_rows(system, forcing, mode, scale, t):
@@ -220,16 +225,13 @@ def _frequency_exponential(system, forcing, mode, nat, t, tau, moving=True):
     A = mode_matrix(system, forcing, mode, nat, t)
     if not moving:
         return A, expm((A * tau)[:, :, None])[:, :, 0], None, None
-    N, J2 = A.shape[0], 2 * len(forcing.harmonics()[0])
+    orders = jnp.asarray(forcing.harmonics()[0], dtype=A.dtype)
+    N, J2 = A.shape[0], 2 * orders.shape[0]
     M = jnp.zeros((N + J2, N + J2), A.dtype)
     M = M.at[:N, :N].set(A).at[N - J2:N, N:].set(jnp.eye(J2, dtype=A.dtype))
     M = M.at[N:, N:].set(A[N - J2:, N - J2:])
     X = expm((M * tau)[:, :, None])[:, :, 0]
-    orders = jnp.asarray(forcing.harmonics()[0], dtype=A.dtype)
-    K = jnp.zeros((J2, J2), A.dtype)
-    idx = jnp.arange(J2 // 2)
-    K = K.at[2 * idx, 2 * idx + 1].set(-orders).at[2 * idx + 1, 2 * idx].set(orders)
-    return A, X[:N, :N], X[:N, N:], K
+    return A, X[:N, :N], X[:N, N:], _rotation(orders, A.dtype)
 
 
 def _moves_frequency_alone(system, forcing, t_sys, t_forc):

@@ -126,7 +126,15 @@ def integrate(dyn, x0, t0, t1, ts, cfg, counts=False):
     if counts:
         ys, status = integrate(dyn, x0, t0, t1, ts, cfg)
         return ys, status, _no_counts(ys)
-    if large_state(system):
+    return _smooth_states(dyn, x0, t0, t1, ts, cfg)
+
+
+@eqx.filter_jit
+def _smooth_states(dyn, x0, t0, t1, ts, cfg):
+    """``integrate``'s states and status of a smooth system: one diffrax solve.  A function
+    of its arguments alone, jitted, so that the integrations repeated inside one program
+    (shooting's steps, the Floquet matrix, the orbit's samples) are traced once."""
+    if large_state(dyn[0]):
         # run lane by lane, a large state's plain integrations pay diffrax's per-stage loop
         # bookkeeping in full (vmapped lanes share it): unrolled stages, the same steps and
         # numbers (_integration.unrolled).  The integrations that carry tangents
@@ -197,6 +205,7 @@ def event_counts(dyn, x0, t1, cfg):
     return lane_by_lane(counted)(*jax.lax.stop_gradient((dyn, x0, t1)), cfg)
 
 
+@eqx.filter_jit
 def _hybrid(dyn, x0, t0, t1, ts, cfg):
     """``hybrid_solve`` of ``dyn`` under ``cfg`` (its tolerances, step and segment
     budgets) on the scaled state."""
@@ -267,8 +276,7 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
                              jax.tree_util.tree_leaves(tangents[0], is_leaf=is_none))
 
             def sensitivities(inputs, t1, ts):
-                vec, rebuild = _flat_active(inputs, active)
-                return _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active)
+                return _sensitivities(inputs, t1, ts, tuple(active), cfg, dyn_active)
 
             if large_state(dyn[0]):
                 sensitivities = lane_by_lane(sensitivities)
@@ -278,21 +286,11 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
             # through the explicit solver's steps (diffrax ForwardMode, one solve for all
             # directions)
             def jacobian(primals, cfg):
-                vec, rebuild = _flat_active(primals[:k], active)
-
-                def states(v):
-                    dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
-                    if hybrid:
-                        ys, status, counted = _hybrid_states(dyn_, x0_, 0.0, t1_, ts_, cfg)
-                    else:
-                        ys, status, counted = integrate(dyn_, x0_, 0.0, t1_, ts_, cfg, True)
-                    return ys, (ys, status, jax.lax.stop_gradient(counted))
-
-                return jax.jacfwd(states, has_aux=True)(vec)
+                return _forward_jacobian(primals, tuple(active), cfg)
 
             if hybrid and ts is None and closed_form_flights(*dyn, cfg):
                 def jacobian(primals, cfg):
-                    return _closed_form_jacobian(primals, active, cfg)
+                    return _closed_form_jacobian(primals, tuple(active), cfg)
 
             # hybrid systems' lanes each follow their own events (see lane_by_lane)
             jac, (ys, status, counted) = (lane_by_lane(jacobian) if hybrid
@@ -319,12 +317,43 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
     return (ys, status), (dys, None)
 
 
+@eqx.filter_jit
+def _forward_jacobian(primals, active, cfg):
+    """``_flow_jvp``'s Jacobian in the leaves ``active`` (indices) of ``primals[:k]``
+    (``k = 3`` for a hybrid system, whose final time is an input direction, else 2)
+    through the explicit solver's steps: diffrax ``ForwardMode``, one solve for all
+    directions.  Returns ``(jac, (ys, status, counts))``."""
+    hybrid = is_hybrid(primals[0][0])
+    k = 3 if hybrid else 2
+    vec, rebuild = _flat_active(primals[:k], active)
+
+    def states(v):
+        dyn_, x0_, t1_, ts_ = tuple(rebuild(v)) + primals[k:]
+        if hybrid:
+            ys, status, counted = _hybrid_states(dyn_, x0_, 0.0, t1_, ts_, cfg)
+        else:
+            ys, status, counted = integrate(dyn_, x0_, 0.0, t1_, ts_, cfg, True)
+        return ys, (ys, status, jax.lax.stop_gradient(counted))
+
+    return jax.jacfwd(states, has_aux=True)(vec)
+
+
+@eqx.filter_jit
+def _sensitivities(inputs, t1, ts, active, cfg, dyn_active):
+    """``_sensitivity_jacobian`` in the leaves ``active`` (indices) of ``inputs =
+    (dyn, x0)``, jitted on its arguments alone so that repeated monodromies are traced
+    once."""
+    vec, rebuild = _flat_active(inputs, active)
+    return _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active)
+
+
 def closed_form_flights(system, forcing, cfg):
     """Whether the hybrid integrations of ``system`` under ``forcing`` and ``cfg`` fly in
     closed form (``_integration.flights``)."""
     return cfg.closed_form and in_closed_form(system, forcing)
 
 
+@eqx.filter_jit
 def _closed_form_jacobian(primals, active, cfg):
     """``_flow_jvp``'s Jacobian of a hybrid period map whose flights are in closed form
     (``stickslip.closed_form_jacobian``): the system's and forcing's active leaves are the

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import warnings
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import is_traced
@@ -41,18 +43,10 @@ def _frequency_warnings(system, forcing) -> list:
 
 
 def _clearance_warnings(system, forcing) -> list:
-    rest = system.rest_state()
-    pen = system.penetrations(rest)
-    if pen.size == 0 or is_traced(pen):
+    pen, motion = _linear_motion(system, forcing)
+    if pen.size == 0 or is_traced(pen) or is_traced(motion):
         return []
-    s0 = system.linear_guess(forcing)
-    if is_traced(s0):
-        return []
-    # displacements at t = 0 and their rates (the displacements are linear in the state):
-    # the amplitude of a harmonic x = a sin(ωt + φ) is sqrt(x² + (ẋ/ω)²)
-    x = np.asarray(system.outputs(s0))
-    xdot = np.asarray(system.outputs(system.vector_field(0.0, s0, forcing)))
-    motion = np.sqrt(x**2 + (xdot / float(forcing.omega)) ** 2)
+    motion = np.asarray(motion)
     amp = float(np.max(motion)) if motion.size else 0.0
     gap = float(np.max(-np.asarray(pen)))
     if not (np.isfinite(amp) and amp > 0.0) or gap <= FAR * amp:
@@ -61,6 +55,19 @@ def _clearance_warnings(system, forcing) -> list:
             f"displacement of the linear response ({amp:.3g} m at omega = "
             f"{float(forcing.omega):.4g} rad/s): the walls will not be reached. Lengths are "
             f"in metres (a gap of 1 mm is gap=1e-3)."]
+
+
+@eqx.filter_jit
+def _linear_motion(system, forcing):
+    """The contacts' penetrations at rest, and the amplitude of each displacement in the
+    linear response (the system's own ``linear_guess``: its displacements and their rates
+    at ``t = 0``; the amplitude of ``x = a sin(ωt + φ)`` is ``sqrt(x² + (ẋ/ω)²)``), in one
+    compiled call rather than operation by operation."""
+    pen = system.penetrations(system.rest_state())
+    s0 = system.linear_guess(forcing)
+    x = system.outputs(s0)
+    xdot = system.outputs(system.vector_field(0.0, s0, forcing))
+    return pen, jnp.sqrt(x**2 + (xdot / forcing.omega) ** 2)
 
 
 def warn_scales(system, forcings, where: str) -> None:

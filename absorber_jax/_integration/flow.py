@@ -276,7 +276,7 @@ def _flow_jvp(primals, tangents, *, cfg, counts=False):
                              jax.tree_util.tree_leaves(tangents[0], is_leaf=is_none))
 
             def sensitivities(inputs, t1, ts):
-                return _sensitivities(inputs, t1, ts, tuple(active), cfg, dyn_active)
+                return _sensitivity_jacobian(inputs, tuple(active), t1, ts, cfg, dyn_active)
 
             if large_state(dyn[0]):
                 sensitivities = lane_by_lane(sensitivities)
@@ -336,15 +336,6 @@ def _forward_jacobian(primals, active, cfg):
         return ys, (ys, status, jax.lax.stop_gradient(counted))
 
     return jax.jacfwd(states, has_aux=True)(vec)
-
-
-@eqx.filter_jit
-def _sensitivities(inputs, t1, ts, active, cfg, dyn_active):
-    """``_sensitivity_jacobian`` in the leaves ``active`` (indices) of ``inputs =
-    (dyn, x0)``, jitted on its arguments alone so that repeated monodromies are traced
-    once."""
-    vec, rebuild = _flat_active(inputs, active)
-    return _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active)
 
 
 def closed_form_flights(system, forcing, cfg):
@@ -459,9 +450,11 @@ def lane_by_lane(fn):
     return call
 
 
-def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
-    """The Jacobian of ``integrate_flow`` in the flat input vector ``vec`` (``rebuild(vec)`` =
-    ``(dyn, x0)``; the save times fixed) by the matrix sensitivity equations
+@eqx.filter_jit
+def _sensitivity_jacobian(inputs, active, t1, ts, cfg, dyn_active):
+    """The Jacobian of ``integrate_flow`` in the leaves ``active`` (indices) of ``inputs =
+    (dyn, x0)``, flattened into one vector ``vec`` (the save times fixed), by the matrix
+    sensitivity equations
     ``Ẋ_v = ∂f/∂x X_v + ∂f/∂v``, all ``m`` input directions integrated together with the
     state in one solve.
 
@@ -475,7 +468,9 @@ def _sensitivity_jacobian(rebuild, vec, t1, ts, cfg, dyn_active):
     (``tangent_control``) on the state together with the worst single direction.  The
     state returned is this solve's (with tangent control its steps are finer than a
     state-only solve's: the two differ at the integration tolerance, far below shooting's).
+    Jitted on its arguments alone: the monodromies one program repeats are traced once.
     Returns ``(jac, (ys, status))``, ``jac`` of shape ``ys.shape + (m,)``."""
+    vec, rebuild = _flat_active(inputs, active)
     dyn, x0 = rebuild(vec)
     # one direction per row: (m, n), the layout vmap batches without transposes
     D0 = jax.jacfwd(lambda v: rebuild(v)[1])(vec).T

@@ -6,6 +6,7 @@ from __future__ import annotations
 import warnings
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -43,9 +44,11 @@ def _frequency_warnings(system, forcing) -> list:
 
 
 def _clearance_warnings(system, forcing) -> list:
-    pen, motion = _linear_motion(system, forcing)
-    if pen.size == 0 or is_traced(pen) or is_traced(motion):
+    if any(is_traced(a) for a in jax.tree_util.tree_leaves((system, forcing))):
         return []
+    if jax.eval_shape(lambda: system.penetrations(system.rest_state())).size == 0:
+        return []                                    # no contact: nothing to compile
+    pen, motion = _linear_motion(system, forcing)
     motion = np.asarray(motion)
     amp = float(np.max(motion)) if motion.size else 0.0
     gap = float(np.max(-np.asarray(pen)))

@@ -696,26 +696,32 @@ def _upcrossing(g_of, gdot_of, A, ta, za, tb, g_a, g_b):
         return g_of(tau, z), gdot_of(tau, z)
 
     def body(c):
-        lo, hi, tau, i, _ = c
+        lo, hi, tau, i, _, nudge = c
         g, gd = at(tau)
         lo = jnp.where(g <= 0, tau, lo)
         hi = jnp.where(g > 0, tau, hi)
-        newton = tau - g / jnp.where(gd == 0, 1.0, gd)
-        inside = (newton > lo) & (newton < hi) & (gd != 0)
-        nxt = jnp.where(inside, newton, 0.5 * (lo + hi))
         # converged on the crossing's upper side (g rises through zero there; a start on
         # the wall, g(ta) = 0, is not the crossing) to a Newton correction below the
         # rounding of t (a slow impact's g is small long before its time is exact), or the
         # bracket is at rounding
         ulp = 4 * jnp.finfo(hi.dtype).eps * jnp.abs(hi)
+        newton = tau - g / jnp.where(gd == 0, 1.0, gd)
+        # Newton converged from below (g <= 0, its correction within rounding) steps up
+        # by the rounding tolerance, doubled at each such step in a row (g's own rounding
+        # can hold it below zero over a few of them): on the upper side the bracket is
+        # then within rounding, where bisection from the far end would halve it ~30 times
+        below = (g <= 0) & (gd > 0) & (newton - tau < ulp)
+        nudge = jnp.where(below, jnp.where(nudge > 0, 2 * nudge, ulp), 0.0)
+        newton = jnp.where(below, tau + nudge, newton)
+        inside = (newton > lo) & (newton < hi) & (gd != 0)
+        nxt = jnp.where(inside, newton, 0.5 * (lo + hi))
         done = ((g > 0) & (g <= jnp.abs(gd) * ulp)) | (hi - lo <= ulp)
-        return lo, hi, nxt, i + 1, done
+        return lo, hi, nxt, i + 1, done, nudge
 
     def cond(c):
-        _, _, _, i, done = c
-        return ~done & (i < LOCATE_ITERATIONS)
+        return ~c[4] & (c[3] < LOCATE_ITERATIONS)
 
     guess = ta + (tb - ta) * (-g_a) / jnp.where(g_b - g_a > 0, g_b - g_a, 1.0)
     guess = jnp.clip(guess, ta, tb)
-    _, hi, _, _, _ = jax.lax.while_loop(cond, body, (ta, tb, guess, 0, jnp.zeros((), bool)))
-    return hi
+    zero = jnp.zeros((), ta.dtype)
+    return jax.lax.while_loop(cond, body, (ta, tb, guess, 0, jnp.zeros((), bool), zero))[1]

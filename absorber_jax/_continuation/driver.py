@@ -17,6 +17,7 @@ from .._core.devices import (
     device_parts,
     lanes_on_devices,
     one_blas_thread,
+    packed_lanes,
     replicated,
     split_over,
 )
@@ -584,13 +585,14 @@ def _corrector_many(prob, s0, section, z_pred, t_prev, patient, live, tol, newto
     """``_corrector`` vmapped over the branches' state scales, sections, predictors,
     hyperplanes and patience (the system, forcing and parameter scale shared), the lanes
     split over ``ndev`` local devices (``lanes_on_devices``; lanes whose ``live`` is False
-    pad the batch, skipped where the lanes run one after the other)."""
+    pad the batch, skipped where the lanes run one after the other).  Returns the lanes'
+    outputs packed into one array, and its layout (``packed_lanes``)."""
     def one(prob, s, j, z, t, pa):
         return _corrector(dataclasses.replace(prob, s0=s, section=j), z, t, tol, newton_steps,
                           pa)
 
-    return lanes_on_devices(one, prob, s0, section, z_pred, t_prev, patient, ndev=ndev,
-                            serial=is_hybrid(prob.system), live=live)
+    return packed_lanes(lanes_on_devices(one, prob, s0, section, z_pred, t_prev, patient,
+                                         ndev=ndev, serial=is_hybrid(prob.system), live=live))
 
 
 def _placed(count, size, ndev):
@@ -663,11 +665,11 @@ def _run_batched(gens, prob, method, lanes=None):
         if parts not in shared:
             shared[parts] = replicated(prob, parts)
         with one_blas_thread(parts):
-            out = jax.device_get(_corrector_many(
-                shared[parts], *lane_inputs, method.tol, method.newton_steps, parts))
-        leaves, tree = jax.tree_util.tree_flatten(out)
+            packed, layout = _corrector_many(shared[parts], *lane_inputs, method.tol,
+                                             method.newton_steps, parts)
+            packed = np.asarray(jax.device_get(packed))
         for j, i in zip(at, idx):
-            point = pending[i][0].point(*tree.unflatten([a[j] for a in leaves]))
+            point = pending[i][0].point(*layout.lane(packed, j))
             try:
                 pending[i] = gens[i].send(point)
             except StopIteration as stop:

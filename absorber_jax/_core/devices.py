@@ -242,6 +242,52 @@ def split_over(lanes, ndev):
     return jax.device_put(lanes, NamedSharding(_mesh(ndev), PartitionSpec("lanes")))
 
 
+class LaneLayout:
+    """Where each leaf of a batch of lanes lies in its packed array (``packed_lanes``): the
+    tree's structure, and each leaf's shape past the lane axis, dtype and columns (a
+    complex leaf: its real parts, then its imaginary parts), or its value where it is no
+    array (a constant of the traced program).  A static output of a jitted function."""
+
+    def __init__(self, treedef, parts):
+        self.treedef, self.parts = treedef, parts
+
+    def lane(self, packed, j):
+        """The tree of lane ``j`` of ``packed`` (a host array), its leaves numpy arrays."""
+        row, leaves = packed[j], []
+        for shape, dtype, cols, const in self.parts:
+            if cols is None:
+                leaves.append(const)
+                continue
+            v = row[cols]
+            if np.issubdtype(dtype, np.complexfloating):
+                half = v.shape[0] // 2
+                v = v[:half] + 1j * v[half:]
+            leaves.append(v.astype(dtype).reshape(shape))
+        return self.treedef.unflatten(leaves)
+
+
+def packed_lanes(tree):
+    """The array leaves of ``tree`` (a batch of lanes: each leaf's first axis) packed into
+    one float64 array of one row a lane, and its ``LaneLayout``: a batch fetched from the
+    devices in one transfer, where a transfer a leaf costs ~0.1 ms each (the continuation
+    corrector's 27 leaves, split over two CPU devices: 1.6-2.4 ms a call).  Integer and
+    boolean leaves are exact in float64 below ``2**53``."""
+    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    cols, parts, at = [], [], 0
+    for a in leaves:
+        if not isinstance(a, jax.Array):
+            parts.append((None, None, None, a))
+            continue
+        flat = a.reshape(a.shape[0], -1)
+        if jnp.iscomplexobj(flat):
+            flat = jnp.concatenate([flat.real, flat.imag], axis=1)
+        cols.append(flat.astype(jnp.float64))
+        width = flat.shape[1]
+        parts.append((a.shape[1:], np.dtype(a.dtype), slice(at, at + width), None))
+        at += width
+    return jnp.concatenate(cols, axis=1), LaneLayout(treedef, tuple(parts))
+
+
 def device_parts(size):
     """The local devices a batch of ``size`` lanes is split over by
     ``lanes_on_devices``: all of them where each gets at least two lanes and an equal

@@ -251,19 +251,22 @@ class LaneLayout:
     def __init__(self, treedef, parts):
         self.treedef, self.parts = treedef, parts
 
-    def lane(self, packed, j):
-        """The tree of lane ``j`` of ``packed`` (a host array), its leaves numpy arrays."""
-        row, leaves = packed[j], []
-        for shape, dtype, cols, const in self.parts:
+    def lanes(self, packed, which):
+        """The trees of the lanes ``which`` of ``packed`` (a host array), their leaves numpy
+        arrays (each leaf unpacked once for all of them, then indexed)."""
+        leaves = []
+        for shape, dtype, cols, _ in self.parts:
             if cols is None:
-                leaves.append(const)
+                leaves.append(None)
                 continue
-            v = row[cols]
+            v = packed[:, cols]
             if np.issubdtype(dtype, np.complexfloating):
-                half = v.shape[0] // 2
-                v = v[:half] + 1j * v[half:]
-            leaves.append(v.astype(dtype).reshape(shape))
-        return self.treedef.unflatten(leaves)
+                half = v.shape[1] // 2
+                v = v[:, :half] + 1j * v[:, half:]
+            leaves.append(v.astype(dtype).reshape((packed.shape[0],) + tuple(shape)))
+        consts = [part[3] for part in self.parts]
+        return [self.treedef.unflatten([c if a is None else a[j]
+                                        for a, c in zip(leaves, consts)]) for j in which]
 
 
 def packed_lanes(tree):

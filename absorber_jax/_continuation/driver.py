@@ -321,6 +321,7 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
     rigid = has_rigid_walls(drv.prob.system)
     checked = 0                 # points up to this one were looked at for a creep
+    trace = _Trace()
     retried = False             # the step was cut since the last point
     bar.update(1)
     while termination is None:
@@ -388,8 +389,8 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                 c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
                 b = c
             termination = "bounds"
-        if termination is None and _retraced(points + [b], np.asarray(drv.prob.s0),
-                                             method.max_angle):
+        if termination is None and _retraced(trace.with_last(points, b),
+                                             np.asarray(drv.prob.s0), method.max_angle):
             # back on a part of the branch followed already: its events were met there
             points.append(b)
             bar.update(1)
@@ -501,6 +502,29 @@ def _in_scale(point, s_old, s_new):
     return np.append(point["xi"] / s_new, point["z"][-1]), t / np.linalg.norm(t)
 
 
+class _Trace:
+    """A branch's points as ``_retraced`` reads them, ``(x0, p)`` rows and impact counts,
+    kept as the branch grows (built again from every point at every step, they cost the
+    hard rigid band ~0.1 s): a point is read once it is final (the branch replaces only its
+    last point: a row whose point is no longer there is read again)."""
+
+    def __init__(self):
+        self.points, self.rows, self.counts = [], [], []
+
+    def with_last(self, points, b):
+        """``(rows, counts)`` of ``points`` followed by the candidate ``b``."""
+        k = min(len(self.points), len(points))
+        while k and points[k - 1] is not self.points[k - 1]:
+            k -= 1
+        del self.points[k:], self.rows[k:], self.counts[k:]
+        for q in points[k:]:
+            self.points.append(q)
+            self.rows.append(np.append(q["x0"], q["z"][-1]))
+            self.counts.append(_impact_count(q))
+        return (np.array(self.rows + [np.append(b["x0"], b["z"][-1])]),
+                np.array(self.counts + [_impact_count(b)]))
+
+
 def _retraced(points, s_now, max_angle):
     """Whether the branch's last point lies on a part of the branch followed already,
     going the same way (round a loop whose start is not the branch's first point: the
@@ -514,11 +538,12 @@ def _retraced(points, s_now, max_angle):
     it (a chord across a grazing corner joins two sheets, whose impacts differ).  A chord
     more than ``RETRACE_SPIKE`` times as long as both its neighbours is not one: the
     state at ``t = 0`` jumps where an impact crosses ``t = 0``, and such a chord is no
-    piece of the branch's curve."""
-    if len(points) < 5:
+    piece of the branch's curve.  ``points``: the branch's ``(x0, p)`` rows and impact
+    counts (``_Trace.with_last``)."""
+    rows, count = points
+    if len(rows) < 5:
         return False
-    X = np.column_stack([np.array([q["x0"] for q in points]) / s_now,
-                         np.array([q["z"][-1] for q in points])])
+    X = np.column_stack([rows[:, :-1] / s_now, rows[:, -1]])
     D = np.diff(X, axis=0)                                   # the chords
     chords = np.linalg.norm(D, axis=1)
     side = np.maximum(np.append(0.0, chords[:-1]), np.append(chords[1:], 0.0))
@@ -530,8 +555,6 @@ def _retraced(points, s_now, max_angle):
     along = d @ D[-1] / np.maximum(length * chords[-1], 1e-300)
     # the same orbits: as many impacts as both ends of the chord (NaN where the orbits
     # count none: balanced ones)
-    count = np.array([_impact_count(q) for q in points])
-
     def same_as_last(c):
         return (c == count[-1]) | (np.isnan(c) & np.isnan(count[-1]))
 

@@ -12,20 +12,29 @@ def _pd_test(mult):
     one of which then crosses -1 (the real multiplier nearest -1 does not exist on the
     complex side: on the hard rigid scene's 5-impact branch two complex pairs meet near
     21.5 rad/s and the period doubling follows at 21.567 rad/s)."""
-    return float(np.prod(mult + 1.0).real)
+    out = 1.0 + 0j
+    for m in _values(mult):
+        out *= m + 1.0
+    return out.real
+
+
+def _values(mult):
+    """The multipliers as Python complex numbers (a few of them: the tests below run at
+    every branch point, where numpy's per-call cost on four numbers dominates)."""
+    return [complex(m) for m in np.asarray(mult).ravel()]
 
 
 def _complex_upper(mult):
     """Multipliers of the complex pairs (upper half plane), away from +1 and -1."""
-    return mult[(mult.imag > 1e-6 * np.maximum(1.0, np.abs(mult)))
-                & (np.abs(mult - 1.0) > 1e-3) & (np.abs(mult + 1.0) > 1e-3)]
+    return [m for m in _values(mult)
+            if m.imag > 1e-6 * max(1.0, abs(m)) and abs(m - 1.0) > 1e-3 and abs(m + 1.0) > 1e-3]
 
 
 def _ns_test(mult):
     c = _complex_upper(mult)
-    out = int(np.sum(np.abs(c) > 1.0))
-    near = (np.abs(c[np.argmin(np.abs(np.abs(c) - 1.0))]) - 1.0) if c.size else np.nan
-    return c.size, out, near
+    out = sum(abs(m) > 1.0 for m in c)
+    near = min((abs(m) - 1.0 for m in c), key=abs) if c else np.nan
+    return len(c), out, near
 
 
 def _events(a, b):

@@ -141,7 +141,7 @@ class _Driver:
         s_old = np.asarray(self.prob.s0)
         sc = point["sc"]
         s_new = sc * max(1.0, float(np.max(np.abs(point["xi"] / sc))))
-        self.prob = _with_scale(self.prob, s_new)
+        self.prob = dataclasses.replace(self.prob, s0=s_new)
         z, t = _in_scale(point, s_old, s_new)
         return dict(point, z=z, t=t, s0=s_new, section=int(self.prob.section))
 
@@ -197,15 +197,6 @@ class _Driver:
                 converged = min(abs(glo), abs(ghi)) <= JUMP_TOL * g_start
                 break
         return best, evals, converged
-
-
-def _with_scale(prob, s0):
-    """``prob`` with the state scale ``s0`` (a host array): a shallow copy with that field
-    set, as ``dataclasses.replace`` would give it without running the module's
-    initialisation again (~0.07 ms, at every point of every branch)."""
-    new = copy.copy(prob)
-    object.__setattr__(new, "s0", s0)
-    return new
 
 
 def _config(system, forcing, parameter, lo, solver, rtol, atol, max_steps):
@@ -321,7 +312,6 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
     parameter, pscale = drv.prob.parameter, float(drv.prob.pscale)
     rigid = has_rigid_walls(drv.prob.system)
     checked = 0                 # points up to this one were looked at for a creep
-    trace = _Trace()
     retried = False             # the step was cut since the last point
     bar.update(1)
     while termination is None:
@@ -389,8 +379,8 @@ def _follow(drv, first, rejoin, locate, bar, defer=False):
                 c["t"] = c["t"] * np.sign(c["t"] @ a["t"] or 1.0)
                 b = c
             termination = "bounds"
-        if termination is None and _retraced(trace.with_last(points, b),
-                                             np.asarray(drv.prob.s0), method.max_angle):
+        if termination is None and _retraced(points + [b], np.asarray(drv.prob.s0),
+                                             method.max_angle):
             # back on a part of the branch followed already: its events were met there
             points.append(b)
             bar.update(1)
@@ -502,29 +492,6 @@ def _in_scale(point, s_old, s_new):
     return np.append(point["xi"] / s_new, point["z"][-1]), t / np.linalg.norm(t)
 
 
-class _Trace:
-    """A branch's points as ``_retraced`` reads them, ``(x0, p)`` rows and impact counts,
-    kept as the branch grows (built again from every point at every step, they cost the
-    hard rigid band ~0.1 s): a point is read once it is final (the branch replaces only its
-    last point: a row whose point is no longer there is read again)."""
-
-    def __init__(self):
-        self.points, self.rows, self.counts = [], [], []
-
-    def with_last(self, points, b):
-        """``(rows, counts)`` of ``points`` followed by the candidate ``b``."""
-        k = min(len(self.points), len(points))
-        while k and points[k - 1] is not self.points[k - 1]:
-            k -= 1
-        del self.points[k:], self.rows[k:], self.counts[k:]
-        for q in points[k:]:
-            self.points.append(q)
-            self.rows.append(np.append(q["x0"], q["z"][-1]))
-            self.counts.append(_impact_count(q))
-        return (np.array(self.rows + [np.append(b["x0"], b["z"][-1])]),
-                np.array(self.counts + [_impact_count(b)]))
-
-
 def _retraced(points, s_now, max_angle):
     """Whether the branch's last point lies on a part of the branch followed already,
     going the same way (round a loop whose start is not the branch's first point: the
@@ -538,12 +505,11 @@ def _retraced(points, s_now, max_angle):
     it (a chord across a grazing corner joins two sheets, whose impacts differ).  A chord
     more than ``RETRACE_SPIKE`` times as long as both its neighbours is not one: the
     state at ``t = 0`` jumps where an impact crosses ``t = 0``, and such a chord is no
-    piece of the branch's curve.  ``points``: the branch's ``(x0, p)`` rows and impact
-    counts (``_Trace.with_last``)."""
-    rows, count = points
-    if len(rows) < 5:
+    piece of the branch's curve."""
+    if len(points) < 5:
         return False
-    X = np.column_stack([rows[:, :-1] / s_now, rows[:, -1]])
+    X = np.column_stack([np.array([q["x0"] for q in points]) / s_now,
+                         np.array([q["z"][-1] for q in points])])
     D = np.diff(X, axis=0)                                   # the chords
     chords = np.linalg.norm(D, axis=1)
     side = np.maximum(np.append(0.0, chords[:-1]), np.append(chords[1:], 0.0))
@@ -555,6 +521,8 @@ def _retraced(points, s_now, max_angle):
     along = d @ D[-1] / np.maximum(length * chords[-1], 1e-300)
     # the same orbits: as many impacts as both ends of the chord (NaN where the orbits
     # count none: balanced ones)
+    count = np.array([_impact_count(q) for q in points])
+
     def same_as_last(c):
         return (c == count[-1]) | (np.isnan(c) & np.isnan(count[-1]))
 
@@ -620,9 +588,8 @@ def _corrector_many(prob, lanes, tol, newton_steps, ndev=1):
     lane, ``(s0, section, z_pred, t_prev, patient, live)`` side by side (``_lane_rows``:
     one transfer a call).  Returns the lanes' outputs packed into one array, and its
     layout (``packed_lanes``)."""
-    n = prob.s0.shape[0]
-    s0, section, z_pred, t_prev, flags = jnp.split(lanes, [n, n + 1, 2 * n + 2, 3 * n + 3],
-                                                   axis=1)
+    s0, section, z_pred, t_prev, flags = jnp.split(
+        lanes, np.cumsum(_lane_widths(prob.s0.shape[0]))[:-1], axis=1)
     section = section[:, 0].astype(jnp.asarray(prob.section).dtype)
     patient, live = flags[:, 0] > 0, flags[:, 1] > 0
 
@@ -634,9 +601,16 @@ def _corrector_many(prob, lanes, tol, newton_steps, ndev=1):
                                          ndev=ndev, serial=is_hybrid(prob.system), live=live))
 
 
+def _lane_widths(n):
+    """The columns of a row of ``_corrector_many``'s ``lanes`` for ``n`` states: the state
+    scale, the section, the predictor and the hyperplane (``n + 1`` each, the parameter
+    included), the patience and live flags (``_lane_rows`` writes them in that order)."""
+    return (n, 1, n + 1, n + 1, 2)
+
+
 def _lane_rows(reqs, live):
     """The corrector requests ``reqs`` (with the padding's ``live`` flags) as the rows of
-    ``_corrector_many``'s ``lanes``."""
+    ``_corrector_many``'s ``lanes`` (``_lane_widths``)."""
     return np.concatenate([np.stack([r[0].prob.s0 for r in reqs]),
                            np.stack([r[0].prob.section for r in reqs])[:, None],
                            np.stack([r[1] for r in reqs]), np.stack([r[2] for r in reqs]),
